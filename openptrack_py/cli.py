@@ -1,0 +1,373 @@
+"""The ``openptrack`` command.
+
+Subcommands::
+
+    openptrack launch NETWORK [--host NAME] [--duration S]   run this host's nodes
+    openptrack node NAME [...]                               run one node in the foreground
+    openptrack status [-c NETWORK]                           live nodes and their rates
+    openptrack echo KEYEXPR [-c NETWORK]                     print messages as JSON lines
+    openptrack eval --scenario NAME --seed N                 score a tracker on a scenario
+    openptrack scenarios                                     list the simulated scenarios
+    openptrack show-config NETWORK                           the validated network file
+
+``openptrack <subcommand> --help`` explains each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pkgutil
+import signal
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from types import FrameType
+
+import orjson
+
+from openptrack_py import __version__
+from openptrack_py.config import load_network, to_yaml
+from openptrack_py.errors import ConfigError, WireFormatError
+from openptrack_py.runtime.args import (
+    add_common_arguments,
+    bus_from_args,
+    network_from_args,
+    resolve_config_path,
+)
+from openptrack_py.runtime.logs import configure_logging
+
+EXIT_CONFIG = 2
+
+
+# ------------------------------------------------------------------------ launch
+
+
+def _cmd_launch(args: argparse.Namespace) -> int:
+    from openptrack_py.launch import Supervisor, host_matches, plan_nodes, this_host
+    from openptrack_py.runtime.status import StatusBoard
+    from openptrack_py.transport.zenoh_bus import ZenohBus
+
+    path = resolve_config_path(args.network)
+    assert path is not None
+    cfg = load_network(path, args.overrides)
+    host = args.host or this_host()
+    passthrough = [a for o in args.overrides for a in ("--set", o)]
+    passthrough += ["--log-level", args.log_level, "--log-format", args.log_format]
+    specs = plan_nodes(cfg, host, path.resolve(), passthrough)
+    if not specs:
+        print(f"openptrack launch: no node of {path} runs on host {host!r}", file=sys.stderr)
+        return EXIT_CONFIG
+    hub = None
+    if cfg.zenoh.hub is not None and host_matches(cfg.zenoh.hub_host, host):
+        try:
+            hub = ZenohBus(cfg.zenoh, as_hub=True)
+        except ConfigError as exc:
+            print(
+                f"openptrack launch: cannot open the hub {cfg.zenoh.hub}: {exc}", file=sys.stderr
+            )
+            return EXIT_CONFIG
+    supervisor = Supervisor(specs)
+    names = ", ".join(s.name for s in specs)
+    supervisor.say("launch", f"site {cfg.site!r} on host {host!r}: starting {names}")
+    if hub is not None:
+        supervisor.say("launch", f"hub listening on {cfg.zenoh.hub}")
+
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
+        supervisor.say("launch", f"{signal.Signals(signum).name}: stopping all nodes")
+        supervisor.request_stop()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    board = StatusBoard(hub, cfg.site) if hub is not None else None
+    reporter = None
+    if board is not None and args.status_interval > 0:
+        import threading
+
+        stop = threading.Event()
+
+        def report() -> None:
+            while not stop.wait(args.status_interval):
+                supervisor.say("status", board.summary_line())
+
+        reporter = threading.Thread(target=report, daemon=True)
+        reporter.start()
+    try:
+        return supervisor.run(args.duration)
+    finally:
+        if reporter is not None:
+            stop.set()
+        if board is not None:
+            board.close()
+        if hub is not None:
+            hub.close()
+
+
+# -------------------------------------------------------------------------- node
+
+
+def available_nodes() -> list[str]:
+    """Names of the node modules shipped in ``openptrack_py.nodes``."""
+    import openptrack_py.nodes as package
+
+    return sorted(m.name for m in pkgutil.iter_modules(package.__path__) if not m.ispkg)
+
+
+def _cmd_node(args: argparse.Namespace) -> int:
+    nodes = available_nodes()
+    if args.name not in nodes:
+        print(
+            f"openptrack node: unknown node {args.name!r} (available: {', '.join(nodes)})",
+            file=sys.stderr,
+        )
+        return EXIT_CONFIG
+    module = f"openptrack_py.nodes.{args.name}"
+    os.execv(sys.executable, [sys.executable, "-m", module, *args.node_args])
+    return 0  # pragma: no cover - execv does not return
+
+
+# ------------------------------------------------------------------------ status
+
+
+def _cmd_status(args: argparse.Namespace) -> int:
+    from openptrack_py.eval.runner import format_table
+    from openptrack_py.runtime.status import StatusBoard
+
+    cfg = network_from_args(args)
+    with bus_from_args(cfg, args) as bus:
+        board = StatusBoard(bus, cfg.site)
+        try:
+            while True:
+                time.sleep(args.wait)
+                rows = board.rows()
+                if args.format == "json":
+                    print(orjson.dumps(rows).decode(), flush=True)
+                else:
+                    columns = ["node", "alive", "host", "pid", "uptime_s", "in_hz", "out_hz"]
+                    columns += ["dropped", "malformed", "stats_age_s"]
+                    text = format_table(rows, columns) if rows else "no live nodes"
+                    print(f"site {cfg.site!r}:\n{text}", flush=True)
+                if not args.watch:
+                    return 0 if rows else 1
+        except KeyboardInterrupt:
+            return 0
+        finally:
+            board.close()
+
+
+# -------------------------------------------------------------------------- echo
+
+
+def _cmd_echo(args: argparse.Namespace) -> int:
+    from openptrack_py.messages.by_key import decoder_for_key
+    from openptrack_py.runtime.node import Inbox
+
+    cfg = network_from_args(args)
+    inbox: Inbox[tuple[float, str, bytes]] = Inbox(100_000)
+    with bus_from_args(cfg, args) as bus:
+        sub = bus.subscribe(args.keyexpr, lambda s: inbox.push((time.time(), s.key, s.payload)))
+        deadline = None if args.duration is None else time.monotonic() + args.duration
+        printed = malformed = 0
+        try:
+            while args.count is None or printed < args.count:
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    break
+                item = inbox.get(timeout=0.2 if left is None else min(0.2, left))
+                if item is None:
+                    continue
+                received, key, payload = item
+                decode = None if args.raw else decoder_for_key(key)
+                if decode is not None:
+                    try:
+                        decode(payload)
+                    except WireFormatError as exc:
+                        malformed += 1
+                        print(f"malformed message on {key}: {exc}", file=sys.stderr)
+                        continue
+                try:
+                    body = orjson.loads(payload)
+                except orjson.JSONDecodeError:
+                    body = {
+                        "bytes": len(payload),
+                        "text": payload[:200].decode("utf-8", "replace"),
+                    }
+                line = {"t": round(received, 6), "key": key, "msg": body}
+                sys.stdout.write(orjson.dumps(line).decode() + "\n")
+                sys.stdout.flush()
+                printed += 1
+        except (KeyboardInterrupt, BrokenPipeError):
+            pass
+        finally:
+            sub.close()
+    return 0
+
+
+# -------------------------------------------------------------------------- eval
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from openptrack_py.eval.runner import format_table
+    from openptrack_py.eval.trackers import DEFAULT_TRACKER, TRACKERS, run_eval
+
+    args.tracker = args.tracker or DEFAULT_TRACKER
+    if args.tracker not in TRACKERS:
+        print(
+            f"openptrack eval: unknown tracker {args.tracker!r} (allowed: {', '.join(TRACKERS)})",
+            file=sys.stderr,
+        )
+        return EXIT_CONFIG
+    scenarios = args.scenario or ["crowd"]
+    seeds = args.seed or [0]
+    rows = []
+    for name in scenarios:
+        for seed in seeds:
+            result = run_eval(
+                name,
+                seed,
+                duration_s=args.duration,
+                tracker=args.tracker,
+                tracker_config=args.tracker_config,
+                overrides=args.overrides,
+                max_distance_m=args.max_distance,
+            )
+            rows.append({"tracker": args.tracker, **result.to_dict()})
+    if args.format == "json":
+        payload = rows[0] if len(rows) == 1 else rows
+        print(json.dumps(payload, indent=None if len(rows) == 1 else 1))
+    else:
+        columns = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "fp", "fn"]
+        columns += ["frames", "gt_objects", "realtime_factor"]
+        print(format_table(rows, columns))
+    return 0
+
+
+# --------------------------------------------------------------------- scenarios
+
+
+def _cmd_scenarios(args: argparse.Namespace) -> int:
+    from openptrack_py.sim.scenarios import describe_scenarios
+
+    for name, text in describe_scenarios().items():
+        print(f"{name:13s} {text}")
+    return 0
+
+
+def _cmd_show_config(args: argparse.Namespace) -> int:
+    path = resolve_config_path(args.network)
+    cfg = load_network(path, args.overrides)
+    sys.stdout.write(to_yaml(cfg))
+    return 0
+
+
+# ------------------------------------------------------------------------ parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``openptrack`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog="openptrack",
+        description="Multi-sensor people tracking for creative apps.",
+    )
+    parser.add_argument("--version", action="version", version=f"openptrack {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser(
+        "launch",
+        help="start this host's nodes of a network file and supervise them",
+        description="Start the nodes a network file assigns to this host, prefix their logs, "
+        "restart crashed ones, stop all on Ctrl-C.",
+    )
+    p.add_argument("network", help="network file or preset name (e.g. demo)")
+    p.add_argument("--host", help="host name to launch for (default: this machine)")
+    p.add_argument("--duration", type=float, help="stop everything after S seconds")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument(
+        "--status-interval", type=float, default=5.0, help="seconds between status lines (0: off)"
+    )
+    p.add_argument("--log-level", default="info", choices=("debug", "info", "warning", "error"))
+    p.add_argument("--log-format", default="text", choices=("text", "json"))
+    p.set_defaults(func=_cmd_launch)
+
+    p = sub.add_parser(
+        "node",
+        help="run one node in the foreground",
+        description="Run one node. Available nodes: "
+        + ", ".join(available_nodes())
+        + ". Arguments after the name go to the node (see 'openptrack node NAME --help').",
+    )
+    p.add_argument("name", help="node name")
+    p.add_argument("node_args", nargs=argparse.REMAINDER, help="arguments for the node")
+    p.set_defaults(func=_cmd_node)
+
+    p = sub.add_parser(
+        "status",
+        help="list live nodes and their message rates",
+        description="List the nodes of a site that are alive (Zenoh liveliness) with the "
+        "rates from their latest stats.",
+    )
+    add_common_arguments(p)
+    p.add_argument("--wait", type=float, default=2.5, help="seconds to listen before printing")
+    p.add_argument("--watch", action="store_true", help="keep printing until Ctrl-C")
+    p.add_argument("--format", choices=("table", "json"), default="table")
+    p.set_defaults(func=_cmd_status)
+
+    p = sub.add_parser(
+        "echo",
+        help="print the messages on a key expression as JSON lines",
+        description="Print every message on KEYEXPR as a JSON line "
+        '{"t": receive time, "key": ..., "msg": ...}. Invalid messages go to stderr.',
+    )
+    p.add_argument("keyexpr", help="key expression, e.g. 'opt/default/detections/**'")
+    add_common_arguments(p)
+    p.add_argument("-n", "--count", type=int, help="stop after N messages")
+    p.add_argument("--duration", type=float, help="stop after S seconds")
+    p.add_argument("--raw", action="store_true", help="do not validate messages")
+    p.set_defaults(func=_cmd_echo)
+
+    p = sub.add_parser(
+        "eval",
+        help="run a simulated scenario faster than real time through a tracker and score it",
+        description="Run scenarios faster than real time through a tracker and print CLEAR "
+        "MOT and identity metrics.",
+    )
+    p.add_argument("--scenario", action="append", help="scenario name (repeatable)")
+    p.add_argument("--seed", type=int, action="append", help="seed (repeatable)")
+    p.add_argument("--duration", type=float, help="simulated seconds (scenario default)")
+    p.add_argument("--tracker", default=None, help="tracker to evaluate")
+    p.add_argument("--tracker-config", type=Path, help="YAML file of tracker parameters")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--max-distance", type=float, default=0.5, help="match distance, metres")
+    p.add_argument("--format", choices=("json", "table"), default="table")
+    p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser("scenarios", help="list the simulated scenarios")
+    p.set_defaults(func=_cmd_scenarios)
+
+    p = sub.add_parser(
+        "show-config",
+        help="validate a network file and print it with every default filled in",
+    )
+    p.add_argument("network", help="network file or preset name")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.set_defaults(func=_cmd_show_config)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``openptrack`` command."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command in ("status", "echo"):
+        configure_logging("openptrack", args.log_level, args.log_format)
+    try:
+        return int(args.func(args))
+    except ConfigError as exc:
+        print(f"openptrack {args.command}: {exc}", file=sys.stderr)
+        return EXIT_CONFIG
+
+
+if __name__ == "__main__":
+    sys.exit(main())

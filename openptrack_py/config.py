@@ -1,0 +1,513 @@
+"""Typed configuration, loaded from YAML, with ``--set key.path=value`` overrides.
+
+One **network file** describes a whole deployment: the site name, how Zenoh sessions
+meet, every sensor (id, type, host, rate, pose or calibration file), the simulator and
+each node's settings. Every node reads the same file and uses its own section.
+
+Unknown keys and out-of-range values raise :class:`~openptrack_py.errors.ConfigError`
+naming the key path, the allowed values and the value received::
+
+    sensors.0.rat: unknown key; did you mean 'rate_hz'? (allowed: calibration, clock_offset_s, ...)
+    sensors.1.rate_hz: must be > 0 (received -5)
+"""
+
+from __future__ import annotations
+
+import difflib
+import typing
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Annotated, Any, Literal, TypeVar
+
+import yaml
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+from openptrack_py.errors import ConfigError
+
+NAME_PATTERN = r"^[A-Za-z0-9_.\-]+$"
+"""Identifiers (site, sensor ids, node names) become Zenoh key chunks: no '/', '*', '$'."""
+
+Name = Annotated[str, Field(pattern=NAME_PATTERN, min_length=1, max_length=64)]
+SensorType = Literal["kinect1", "kinect2", "realsense", "sr4500"]
+ScenarioName = Literal["crowd", "distance", "occlusions", "classroom", "installation", "stress"]
+ENDPOINT_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream")
+M = TypeVar("M", bound=BaseModel)
+
+
+class StrictModel(BaseModel):
+    """Base of every config section: unknown keys are errors, values are immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+def _check_endpoint(value: str) -> str:
+    protocol, sep, address = value.partition("/")
+    if not sep or protocol not in ENDPOINT_PROTOCOLS or not address:
+        raise ValueError(
+            f"must be a Zenoh endpoint '<protocol>/<address>' with protocol one of "
+            f"{', '.join(ENDPOINT_PROTOCOLS)}, e.g. 'tcp/127.0.0.1:7447'"
+        )
+    return value
+
+
+class ZenohConfig(StrictModel):
+    """How this deployment's Zenoh sessions find each other.
+
+    Every node is a Zenoh peer that listens on ``listen`` and connects to ``hub`` plus
+    ``connect``. The launcher on ``hub_host`` listens on ``hub`` itself, so all nodes
+    meet there and then link directly (peer gossip). Multicast scouting is off unless
+    asked for, so nothing depends on the LAN's multicast set-up.
+
+    Parameters
+    ----------
+    mode : {"peer", "client"}
+        Zenoh session mode of every node.
+    hub : str or None
+        Rendezvous endpoint, e.g. ``tcp/192.168.1.10:7447``. ``None`` disables it.
+    hub_host : str
+        Host whose launcher listens on ``hub``.
+    listen : list of str
+        Each node's own listening endpoints (port 0 = any free port).
+    connect : list of str
+        Extra endpoints every node connects to (e.g. a zenohd router).
+    multicast_scouting : bool
+        Let sessions discover each other by UDP multicast as well.
+    config_file : Path, optional
+        A Zenoh JSON5 configuration applied first; the keys above override it.
+    """
+
+    mode: Literal["peer", "client"] = "peer"
+    hub: str | None = "tcp/127.0.0.1:7447"
+    hub_host: str = "localhost"
+    listen: list[str] = Field(default_factory=lambda: ["tcp/127.0.0.1:0"])
+    connect: list[str] = Field(default_factory=list)
+    multicast_scouting: bool = False
+    config_file: Path | None = None
+
+    @field_validator("hub")
+    @classmethod
+    def _hub_endpoint(cls, value: str | None) -> str | None:
+        return None if value is None else _check_endpoint(value)
+
+    @field_validator("listen", "connect")
+    @classmethod
+    def _endpoints(cls, value: list[str]) -> list[str]:
+        for item in value:
+            _check_endpoint(item)
+        return value
+
+
+class Pose(StrictModel):
+    """Where a sensor stands and where it looks, in the world frame.
+
+    Parameters
+    ----------
+    x, y : float
+        Position on the floor, metres.
+    z : float
+        Height of the sensor's optical centre above the floor, metres.
+    yaw_deg : float
+        Heading of the optical axis, degrees counter-clockwise from +x.
+    pitch_deg : float
+        Downward tilt of the optical axis, degrees (0 = horizontal, 90 = straight down).
+    roll_deg : float
+        Rotation about the optical axis, degrees.
+    """
+
+    x: float = 0.0
+    y: float = 0.0
+    z: float = Field(2.5, ge=0.0, le=30.0)
+    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
+    pitch_deg: float = Field(20.0, ge=-90.0, le=90.0)
+    roll_deg: float = Field(0.0, ge=-180.0, le=180.0)
+
+
+class PoseError(StrictModel):
+    """Simulated calibration error: the pose the sensor believes minus its true pose."""
+
+    dx: float = Field(0.0, ge=-5.0, le=5.0)
+    dy: float = Field(0.0, ge=-5.0, le=5.0)
+    dyaw_deg: float = Field(0.0, ge=-45.0, le=45.0)
+
+
+class SensorConfig(StrictModel):
+    """One depth sensor of the network.
+
+    Simulation parameters left at ``None`` take the sensor type's defaults
+    (``openptrack_py.sim.sensors.SENSOR_TYPES``).
+
+    Parameters
+    ----------
+    id : str
+        Unique sensor id; also the last chunk of its detection key.
+    type : {"kinect1", "kinect2", "realsense", "sr4500"}
+        Sensor model.
+    host : str
+        Machine that runs this sensor's node.
+    source : {"sim", "camera", "recording"}
+        Where frames come from. ``sim`` sensors are produced by the simulator node.
+    rate_hz : float, optional
+        Frame rate; the type's nominal rate if omitted.
+    pose : Pose, optional
+        Pose in the world frame.
+    calibration : Path, optional
+        Calibration file giving the pose (alternative to ``pose``).
+    clock_offset_s : float
+        Simulated constant offset of the sensor's clock.
+    latency_s, latency_jitter_s : float
+        Simulated mean delay from capture to publication, and its standard deviation.
+    miss_probability : float, optional
+        Simulated probability of missing a fully visible person.
+    clutter_per_frame : float, optional
+        Simulated mean number of false detections per frame.
+    frame_drop_probability : float
+        Simulated probability that a whole frame is lost.
+    pose_error : PoseError
+        Simulated calibration error.
+    """
+
+    id: Name
+    type: SensorType = "kinect2"
+    host: str = "localhost"
+    source: Literal["sim", "camera", "recording"] = "sim"
+    rate_hz: float | None = Field(None, gt=0.0, le=120.0)
+    pose: Pose | None = None
+    calibration: Path | None = None
+    clock_offset_s: float = Field(0.0, ge=-3600.0, le=3600.0)
+    latency_s: float = Field(0.03, ge=0.0, le=5.0)
+    latency_jitter_s: float = Field(0.005, ge=0.0, le=1.0)
+    miss_probability: float | None = Field(None, ge=0.0, le=1.0)
+    clutter_per_frame: float | None = Field(None, ge=0.0, le=50.0)
+    frame_drop_probability: float = Field(0.0, ge=0.0, le=1.0)
+    pose_error: PoseError = Field(default_factory=PoseError)
+
+    @model_validator(mode="after")
+    def _pose_or_calibration(self) -> SensorConfig:
+        if self.pose is not None and self.calibration is not None:
+            raise ValueError("give either 'pose' or 'calibration', not both")
+        return self
+
+
+class SimConfig(StrictModel):
+    """The simulator node: a scenario played in real time on the network's sim sensors.
+
+    Parameters
+    ----------
+    host : str
+        Machine that runs the simulator node.
+    scenario : str
+        Named scenario; see ``openptrack_py.sim.scenarios``.
+    seed : int
+        Random seed: the same seed gives the same people, paths and noise.
+    duration_s : float, optional
+        Stop after this much simulated time (forever if omitted).
+    speed : float
+        Playback speed relative to real time.
+    sensor_model : {"detections"}
+        Level of sensor simulation: ``detections`` draws detections directly from the
+        ground truth through each sensor's field of view, occlusion and noise model.
+    ground_truth_rate_hz : float
+        Rate of ground-truth frames on ``opt/<site>/ground_truth``.
+    use_scenario_sensors : bool
+        Ignore the network's sensors and use the scenario's own placement.
+    """
+
+    host: str = "localhost"
+    scenario: ScenarioName = "installation"
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    duration_s: float | None = Field(None, gt=0.0)
+    speed: float = Field(1.0, gt=0.0, le=100.0)
+    sensor_model: Literal["detections"] = "detections"
+    ground_truth_rate_hz: float = Field(30.0, gt=0.0, le=240.0)
+    use_scenario_sensors: bool = False
+
+
+class RecorderConfig(StrictModel):
+    """A recorder node: writes every message on ``keys`` to a JSON-lines file.
+
+    Parameters
+    ----------
+    host : str
+        Machine that runs the recorder.
+    path : Path
+        Output file (``.jsonl``); a timestamp is inserted before the suffix if it exists.
+    keys : list of str
+        Key expressions below ``opt/<site>/`` to record.
+    """
+
+    host: str = "localhost"
+    path: Path = Path("recordings/run.jsonl")
+    keys: list[str] = Field(default_factory=lambda: ["detections/**", "tracks", "ground_truth"])
+
+
+class NetworkConfig(StrictModel):
+    """A whole deployment, as read from one network file.
+
+    Parameters
+    ----------
+    site : str
+        Site name, the second chunk of every key (``opt/<site>/...``).
+    zenoh : ZenohConfig
+        How sessions meet.
+    sensors : list of SensorConfig
+        Every sensor; ids must be unique.
+    sim : SimConfig, optional
+        Present when some sensors are simulated.
+    recorder : RecorderConfig, optional
+        Present to record the run.
+    stats_interval_s : float
+        How often every node publishes its counters.
+    """
+
+    site: Name = "default"
+    zenoh: ZenohConfig = Field(default_factory=ZenohConfig)
+    sensors: list[SensorConfig] = Field(default_factory=list)
+    sim: SimConfig | None = None
+    recorder: RecorderConfig | None = None
+    stats_interval_s: float = Field(2.0, gt=0.0, le=3600.0)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> NetworkConfig:
+        ids = [s.id for s in self.sensors]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        if duplicates:
+            raise ValueError(f"sensor ids must be unique; repeated: {', '.join(duplicates)}")
+        simulated = [s.id for s in self.sensors if s.source == "sim"]
+        if simulated and self.sim is None:
+            raise ValueError(
+                f"sensors {', '.join(simulated)} have source 'sim' but there is no 'sim' section"
+            )
+        return self
+
+    def sensor(self, sensor_id: str) -> SensorConfig:
+        """Return the sensor with this id.
+
+        Raises
+        ------
+        ConfigError
+            If no sensor has that id.
+        """
+        for s in self.sensors:
+            if s.id == sensor_id:
+                return s
+        known = ", ".join(s.id for s in self.sensors) or "none"
+        raise ConfigError(f"sensors: no sensor with id {sensor_id!r} (known: {known})")
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def _parse_value(text: str) -> Any:
+    """Parse an override's value as a YAML scalar or flow collection."""
+    try:
+        return yaml.safe_load(text) if text.strip() else ""
+    except yaml.YAMLError:
+        return text
+
+
+def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> dict[str, Any]:
+    """Apply ``key.path=value`` overrides to a raw config mapping.
+
+    Path chunks index mappings by key and lists by position, or by the ``id`` / ``name``
+    of their items (``sensors.kinect_a.rate_hz=15``). Missing mappings are created.
+
+    Raises
+    ------
+    ConfigError
+        If an override is not ``key=value`` or its path cannot be followed.
+    """
+    for override in overrides:
+        path, sep, text = override.partition("=")
+        if not sep or not path.strip():
+            raise ConfigError(f"override {override!r}: expected key.path=value")
+        chunks = path.strip().split(".")
+        node: Any = data
+        for i, chunk in enumerate(chunks):
+            where = ".".join(chunks[: i + 1])
+            last = i == len(chunks) - 1
+            if isinstance(node, dict):
+                if last:
+                    node[chunk] = _parse_value(text)
+                else:
+                    if node.get(chunk) is None:
+                        node[chunk] = {}
+                    node = node[chunk]
+            elif isinstance(node, list):
+                index = _list_index(node, chunk, where)
+                if last:
+                    node[index] = _parse_value(text)
+                else:
+                    node = node[index]
+            else:
+                raise ConfigError(f"override {override!r}: {where} is not a mapping or list")
+    return data
+
+
+def _list_index(items: list, chunk: str, where: str) -> int:
+    if chunk.lstrip("-").isdigit():
+        index = int(chunk)
+        if -len(items) <= index < len(items):
+            return index % len(items)
+        raise ConfigError(f"{where}: index out of range (list has {len(items)} items)")
+    for index, item in enumerate(items):
+        if isinstance(item, dict) and chunk in (item.get("id"), item.get("name")):
+            return index
+    names = [str(it.get("id", it.get("name"))) for it in items if isinstance(it, dict)]
+    raise ConfigError(f"{where}: no item with id {chunk!r} (known: {', '.join(names) or 'none'})")
+
+
+def _inner_models(annotation: Any) -> list[type[BaseModel]]:
+    """The BaseModel classes reachable from a field annotation (through Optional, list...)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    origin = typing.get_origin(annotation)
+    if origin is None:
+        return []
+    found: list[type[BaseModel]] = []
+    for arg in typing.get_args(annotation):
+        if origin is Annotated and arg is not typing.get_args(annotation)[0]:
+            continue
+        found.extend(_inner_models(arg))
+    return found
+
+
+def _model_at(model: type[BaseModel], loc: Sequence[int | str]) -> type[BaseModel] | None:
+    current: type[BaseModel] | None = model
+    for chunk in loc:
+        if current is None:
+            return None
+        if isinstance(chunk, int):
+            continue
+        field = current.model_fields.get(chunk)
+        if field is None:
+            return None
+        inner = _inner_models(field.annotation)
+        current = inner[0] if inner else None
+    return current
+
+
+def _allowed_text(ctx: dict[str, Any]) -> str | None:
+    for key, op in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
+        if key in ctx:
+            return f"must be {op} {ctx[key]}"
+    if "expected" in ctx:
+        return f"must be one of {ctx['expected']}"
+    if "pattern" in ctx:
+        return f"must match {ctx['pattern']}"
+    return None
+
+
+def _format_error(root: type[BaseModel], err: dict[str, Any], data: Any) -> str:
+    loc = [c for c in err["loc"] if not (isinstance(c, str) and c.startswith("function-"))]
+    where = ".".join(str(c) for c in loc) or "(top level)"
+    received = err.get("input")
+    if err["type"] == "extra_forbidden":
+        parent = _model_at(root, loc[:-1])
+        allowed = sorted(parent.model_fields) if parent else []
+        hint = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
+        did_you_mean = f"; did you mean {hint[0]!r}?" if hint else ""
+        return f"{where}: unknown key{did_you_mean} (allowed: {', '.join(allowed)})"
+    if err["type"] == "missing":
+        return f"{where}: required key is missing"
+    ctx = err.get("ctx") or {}
+    text = _allowed_text(ctx)
+    if text is None:
+        text = err["msg"]
+        text = text.removeprefix("Value error, ")
+        text = text[0].lower() + text[1:] if text else text
+    if err["type"].startswith("literal") or "expected" in ctx:
+        return f"{where}: {text} (received {received!r})"
+    if isinstance(received, dict) and not loc:
+        return f"{where}: {text}"
+    return f"{where}: {text} (received {received!r})"
+
+
+def validate_config(model: type[M], data: Any, source: str = "config") -> M:
+    """Validate a raw mapping against ``model``.
+
+    Raises
+    ------
+    ConfigError
+        Listing every problem, one per line, each naming its key path.
+    """
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(
+            f"{source}: expected a mapping at the top level, got {type(data).__name__}"
+        )
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        lines = [_format_error(model, e, data) for e in exc.errors(include_url=False)]
+        raise ConfigError(f"{source}: invalid configuration\n  " + "\n  ".join(lines)) from None
+
+
+def read_yaml(path: str | Path) -> dict[str, Any]:
+    """Read a YAML mapping from ``path``.
+
+    Raises
+    ------
+    ConfigError
+        If the file is missing, unreadable or not YAML.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ConfigError(f"{path}:{where}: not valid YAML ({problem})") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(
+            f"{path}: expected a mapping at the top level, got {type(data).__name__}"
+        )
+    return data
+
+
+def load_config(
+    model: type[M], path: str | Path | None = None, overrides: Iterable[str] = ()
+) -> M:
+    """Load ``model`` from a YAML file (or defaults), apply overrides, validate.
+
+    Parameters
+    ----------
+    model : type
+        The config model, e.g. :class:`NetworkConfig`.
+    path : str or Path, optional
+        YAML file; the model's defaults are used when omitted.
+    overrides : iterable of str
+        ``key.path=value`` items applied after reading the file.
+
+    Raises
+    ------
+    ConfigError
+        For unreadable files, bad overrides or invalid values.
+    """
+    data = read_yaml(path) if path is not None else {}
+    data = apply_overrides(data, overrides)
+    return validate_config(model, data, str(path) if path is not None else "config")
+
+
+def load_network(path: str | Path | None = None, overrides: Iterable[str] = ()) -> NetworkConfig:
+    """Load a network file (see :class:`NetworkConfig`)."""
+    return load_config(NetworkConfig, path, overrides)
+
+
+def to_yaml(config: BaseModel) -> str:
+    """Render a config (defaults included) as YAML."""
+    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)

@@ -1,0 +1,1 @@
+"""Evaluation: CLEAR MOT and identity metrics on the ground plane, scenario runner."""

@@ -1,0 +1,565 @@
+"""CLEAR MOT and identity (IDF1) metrics for people tracked on the ground plane.
+
+Ground truth and tracker output are compared frame by frame with Euclidean distances in
+metres; a ground-truth object and a hypothesis can only correspond when they are at most
+``max_distance_m`` apart.
+
+The per-frame correspondence follows the CLEAR MOT procedure [1]_ as implemented by
+py-motmetrics 1.4 [3]_:
+
+1. Every ground-truth object keeps the hypothesis it was last matched to (in any earlier
+   frame) if that hypothesis is present, not yet taken in this frame and within the
+   threshold. Objects are visited in the order their ids were given.
+2. The remaining objects and hypotheses are paired by a linear assignment restricted to
+   pairs within the threshold: the largest possible number of pairs, and among those the
+   smallest total distance.
+3. Unpaired objects are misses (FN), unpaired hypotheses are false positives (FP).
+
+A pair made in step 2 is an identity switch when the object had already been matched
+before, in any earlier frame, and its most recent hypothesis differs. A hypothesis that
+moves from one object to another (a "transfer" in py-motmetrics) is not a switch.
+
+The identity measures IDF1, IDP and IDR [2]_ come from a global one-to-one assignment of
+ground-truth trajectories to hypothesis trajectories that maximises the number of frames
+in which an assigned pair is within the threshold (the identity true positives, IDTP).
+
+References
+----------
+.. [1] K. Bernardin and R. Stiefelhagen, "Evaluating multiple object tracking
+   performance: the CLEAR MOT metrics", EURASIP Journal on Image and Video Processing,
+   2008.
+.. [2] E. Ristani, F. Solera, R. Zou, R. Cucchiara and C. Tomasi, "Performance measures
+   and a data set for multi-target, multi-camera tracking", ECCV Workshops, 2016.
+.. [3] C. Heindl et al., py-motmetrics, https://github.com/cheind/py-motmetrics
+
+Examples
+--------
+>>> acc = MotAccumulator(max_distance_m=0.5)
+>>> acc.update([1, 2], [[0.0, 0.0], [2.0, 0.0]], [7, 8], [[0.1, 0.0], [2.0, 0.2]])
+>>> acc.update_missing_frame([1, 2], [[0.0, 0.1], [2.0, 0.1]])
+>>> m = acc.compute()
+>>> m.fn, m.matches, round(m.mota, 3), round(m.motp, 3)
+(2, 2, 0.5, 0.15)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import linear_sum_assignment
+
+__all__ = ["MotAccumulator", "MotMetrics", "distance_matrix"]
+
+# A ground-truth track matched in at least this fraction of its frames is mostly tracked.
+_MOSTLY_TRACKED_RATIO = 0.8
+# A ground-truth track matched in less than this fraction of its frames is mostly lost.
+_MOSTLY_LOST_RATIO = 0.2
+
+_EMPTY_IDS: NDArray[np.int64] = np.empty(0, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class MotMetrics:
+    """Summary of a tracking run scored against ground truth.
+
+    Parameters
+    ----------
+    mota : float
+        Multiple object tracking accuracy, ``1 - (fn + fp + id_switches) / gt_objects``;
+        NaN when there are no ground-truth objects.
+    motp : float
+        Mean Euclidean distance in metres over all matched pairs; NaN without matches.
+    idf1 : float
+        Identity F1 score, ``2 IDTP / (gt_objects + hyp_objects)``; NaN if both are 0.
+    idp : float
+        Identity precision, ``IDTP / hyp_objects``; NaN without hypotheses.
+    idr : float
+        Identity recall, ``IDTP / gt_objects``; NaN without ground-truth objects.
+    precision : float
+        ``matches / hyp_objects``; NaN without hypotheses.
+    recall : float
+        ``matches / gt_objects``; NaN without ground-truth objects.
+    fp : int
+        Hypotheses not matched to any ground-truth object (false positives).
+    fn : int
+        Ground-truth objects not matched to any hypothesis (misses).
+    id_switches : int
+        Matches whose hypothesis differs from the object's previous match.
+    fragmentations : int
+        Times a ground-truth track goes from matched to missed and is matched again later.
+    matches : int
+        Matched (object, hypothesis) pairs summed over frames, switches included (this is
+        ``num_detections`` in py-motmetrics, whose ``num_matches`` excludes switches).
+    frames : int
+        Number of frames scored.
+    gt_objects : int
+        Ground-truth objects present, summed over frames.
+    hyp_objects : int
+        Hypotheses present, summed over frames.
+    gt_tracks : int
+        Distinct ground-truth ids.
+    hyp_tracks : int
+        Distinct hypothesis ids.
+    mostly_tracked : int
+        Ground-truth ids matched in at least 80 % of the frames they are present in.
+    partially_tracked : int
+        Ground-truth ids matched in at least 20 % and less than 80 % of their frames.
+    mostly_lost : int
+        Ground-truth ids matched in less than 20 % of their frames.
+    """
+
+    mota: float
+    motp: float
+    idf1: float
+    idp: float
+    idr: float
+    precision: float
+    recall: float
+    fp: int
+    fn: int
+    id_switches: int
+    fragmentations: int
+    matches: int
+    frames: int
+    gt_objects: int
+    hyp_objects: int
+    gt_tracks: int
+    hyp_tracks: int
+    mostly_tracked: int
+    partially_tracked: int
+    mostly_lost: int
+
+    def to_dict(self) -> dict[str, float | int | None]:
+        """Return the metrics as a JSON-friendly dictionary.
+
+        Returns
+        -------
+        dict of str to float, int or None
+            One entry per field, in declaration order. Non-finite floats (NaN) become
+            ``None`` so the result can be written with any JSON encoder.
+        """
+        out: dict[str, float | int | None] = {}
+        for field in fields(self):
+            value = getattr(self, field.name)
+            if isinstance(value, float) and not math.isfinite(value):
+                out[field.name] = None
+            else:
+                out[field.name] = value
+        return out
+
+
+def _check_max_distance(max_distance_m: float) -> float:
+    """Validate the matching threshold and return it as a float."""
+    message = f"max_distance_m must be a finite number > 0 (metres); got {max_distance_m!r}"
+    if isinstance(max_distance_m, bool):
+        raise ValueError(message)
+    try:
+        value = float(max_distance_m)
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(message)
+    return value
+
+
+def _as_ids(ids: ArrayLike, name: str) -> NDArray[np.int64]:
+    """Validate one frame's ids: a 1-D sequence of distinct integers."""
+    try:
+        arr = np.asarray(ids)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a sequence of integers; got {ids!r}") from exc
+    if arr.size == 0:
+        if arr.ndim > 1 and arr.shape[-1] != 0:
+            raise ValueError(f"{name} must be 1-D; got shape {arr.shape}")
+        return _EMPTY_IDS
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be 1-D; got shape {arr.shape}")
+    if arr.dtype.kind not in "iu":
+        raise ValueError(f"{name} must contain integers; got dtype {arr.dtype}")
+    if arr.dtype.kind == "u" and int(arr.max()) > np.iinfo(np.int64).max:
+        raise ValueError(f"{name} contains ids larger than the int64 range")
+    arr = arr.astype(np.int64, copy=False)
+    if np.unique(arr).size != arr.size:
+        values, counts = np.unique(arr, return_counts=True)
+        duplicates = values[counts > 1].tolist()
+        raise ValueError(f"{name} must be unique within a frame; duplicated ids: {duplicates}")
+    return arr
+
+
+def _as_points(
+    xy: ArrayLike, name: str, n: int | None = None, ids_name: str = ""
+) -> NDArray[np.float64]:
+    """Validate coordinates: shape (n, 2) or (n, 3), finite, in metres."""
+    try:
+        arr = np.asarray(xy, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an array of shape (n, 2) or (n, 3): {exc}") from exc
+    if arr.ndim == 1 and arr.size == 0:
+        arr = arr.reshape(0, 2)
+    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
+        raise ValueError(f"{name} must have shape (n, 2) or (n, 3); got shape {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        raise ValueError(
+            f"{name} has {arr.shape[0]} rows but {ids_name} has {n} ids; "
+            "they must have the same length"
+        )
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} contains non-finite coordinates (NaN or inf)")
+    return arr
+
+
+def _pairwise_distances(gt: NDArray[np.float64], hyp: NDArray[np.float64]) -> NDArray:
+    """Euclidean distances between validated point sets of equal dimension."""
+    diff = gt[:, None, :] - hyp[None, :, :]
+    return np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
+
+
+def distance_matrix(
+    gt_xy: ArrayLike, hyp_xy: ArrayLike, max_distance_m: float
+) -> NDArray[np.float64]:
+    """Compute gated Euclidean distances between ground-truth objects and hypotheses.
+
+    Parameters
+    ----------
+    gt_xy : array_like, shape (n, 2) or (n, 3)
+        Ground-truth positions in metres; ``n`` may be 0.
+    hyp_xy : array_like, shape (m, 2) or (m, 3)
+        Hypothesis positions in metres; ``m`` may be 0. When both are non-empty they must
+        have the same number of coordinates; all of them are used.
+    max_distance_m : float
+        Gate in metres, finite and > 0. A distance equal to the gate is kept.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, m)
+        Distances in metres, ``numpy.inf`` where the distance exceeds ``max_distance_m``.
+
+    Raises
+    ------
+    ValueError
+        If an argument has the wrong shape, contains non-finite coordinates, or the gate
+        is not a finite positive number.
+    """
+    gate = _check_max_distance(max_distance_m)
+    gt = _as_points(gt_xy, "gt_xy")
+    hyp = _as_points(hyp_xy, "hyp_xy")
+    if gt.shape[0] == 0 or hyp.shape[0] == 0:
+        return np.empty((gt.shape[0], hyp.shape[0]), dtype=np.float64)
+    if gt.shape[1] != hyp.shape[1]:
+        raise ValueError(
+            "gt_xy and hyp_xy must have the same number of coordinates; "
+            f"got {gt.shape[1]} and {hyp.shape[1]}"
+        )
+    dist = _pairwise_distances(gt, hyp)
+    dist[dist > gate] = np.inf
+    return dist
+
+
+def _max_matching_min_cost(cost: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+    """Pair rows and columns through finite, non-negative entries of ``cost``.
+
+    The result has the largest possible number of pairs and, among such matchings, the
+    smallest total cost. Infinite entries are forbidden pairs.
+    """
+    allowed = np.isfinite(cost)
+    rows = np.flatnonzero(allowed.any(axis=1))
+    cols = np.flatnonzero(allowed.any(axis=0))
+    if rows.size == 0:
+        return _EMPTY_IDS, _EMPTY_IDS
+    sub = cost[np.ix_(rows, cols)]
+    sub_allowed = allowed[np.ix_(rows, cols)]
+    # scipy assigns min(shape) pairs, so forbidden pairs get a finite penalty larger than
+    # the total cost of any set of allowed pairs: one more allowed pair always lowers the
+    # objective, hence cardinality is maximised first and the cost second.
+    size = min(sub.shape)
+    penalty = size * (float(sub[sub_allowed].max()) + 1.0)
+    r, c = linear_sum_assignment(np.where(sub_allowed, sub, penalty))
+    keep = sub_allowed[r, c]
+    return rows[r[keep]], cols[c[keep]]
+
+
+class MotAccumulator:
+    """Accumulate per-frame correspondences and compute CLEAR MOT and IDF1 metrics.
+
+    Parameters
+    ----------
+    max_distance_m : float, optional
+        Largest Euclidean distance in metres at which a ground-truth object and a
+        hypothesis may correspond. Must be finite and > 0. Default 0.5.
+
+    Raises
+    ------
+    ValueError
+        If ``max_distance_m`` is not a finite number > 0.
+
+    Notes
+    -----
+    Matching, misses, false positives and switches are decided in :meth:`update` (they
+    depend on the history); per-frame ids and gated pairs are stored as small arrays and
+    the track-level measures (fragmentations, mostly tracked/lost, IDF1) are computed with
+    numpy in :meth:`compute`. The accumulator can be computed again after more updates.
+
+    Examples
+    --------
+    >>> acc = MotAccumulator(max_distance_m=0.5)
+    >>> acc.update([1], [[0.0, 0.0]], [7], [[0.2, 0.0]])
+    >>> acc.compute().mota
+    1.0
+    """
+
+    def __init__(self, max_distance_m: float = 0.5) -> None:
+        self._max_distance_m = _check_max_distance(max_distance_m)
+        # ground-truth id -> hypothesis id of its most recent match (any earlier frame)
+        self._last_hyp: dict[int, int] = {}
+        self._frames = 0
+        self._fp = 0
+        self._fn = 0
+        self._switches = 0
+        self._matches = 0
+        self._distance_sum = 0.0
+        self._gt_ids: list[NDArray[np.int64]] = []
+        self._gt_matched: list[NDArray[np.bool_]] = []
+        self._hyp_ids: list[NDArray[np.int64]] = []
+        self._pair_gt: list[NDArray[np.int64]] = []
+        self._pair_hyp: list[NDArray[np.int64]] = []
+
+    @property
+    def frames(self) -> int:
+        """Number of frames added so far, missing frames included."""
+        return self._frames
+
+    def update(
+        self,
+        gt_ids: ArrayLike,
+        gt_xy: ArrayLike,
+        hyp_ids: ArrayLike,
+        hyp_xy: ArrayLike,
+    ) -> None:
+        """Add one frame of ground truth and tracker output.
+
+        Parameters
+        ----------
+        gt_ids : sequence of int, length n
+            Ground-truth ids present in the frame, unique within the frame.
+        gt_xy : array_like, shape (n, 2) or (n, 3)
+            Ground-truth positions in metres.
+        hyp_ids : sequence of int, length m
+            Hypothesis (track) ids output by the tracker, unique within the frame.
+        hyp_xy : array_like, shape (m, 2) or (m, 3)
+            Hypothesis positions in metres; same number of coordinates as ``gt_xy`` when
+            both are non-empty.
+
+        Raises
+        ------
+        ValueError
+            If ids are not 1-D integers, repeat within the frame, or do not match the
+            number of positions; if positions have the wrong shape or are not finite.
+        """
+        gt = _as_ids(gt_ids, "gt_ids")
+        hyp = _as_ids(hyp_ids, "hyp_ids")
+        gxy = _as_points(gt_xy, "gt_xy", gt.size, "gt_ids")
+        hxy = _as_points(hyp_xy, "hyp_xy", hyp.size, "hyp_ids")
+        if gt.size and hyp.size:
+            if gxy.shape[1] != hxy.shape[1]:
+                raise ValueError(
+                    "gt_xy and hyp_xy must have the same number of coordinates; "
+                    f"got {gxy.shape[1]} and {hxy.shape[1]}"
+                )
+            dist = _pairwise_distances(gxy, hxy)
+            dist[dist > self._max_distance_m] = np.inf
+        else:
+            dist = np.empty((gt.size, hyp.size), dtype=np.float64)
+        self._add_frame(gt, hyp, dist)
+
+    def update_missing_frame(self, gt_ids: ArrayLike, gt_xy: ArrayLike) -> None:
+        """Add a frame for which the tracker produced no output at all.
+
+        Every ground-truth object present is a miss; this is the same as :meth:`update`
+        with zero hypotheses, kept separate so dropped tracker frames are explicit.
+
+        Parameters
+        ----------
+        gt_ids : sequence of int, length n
+            Ground-truth ids present in the frame, unique within the frame.
+        gt_xy : array_like, shape (n, 2) or (n, 3)
+            Ground-truth positions in metres (validated, not otherwise used).
+
+        Raises
+        ------
+        ValueError
+            If the ids or positions are invalid (see :meth:`update`).
+        """
+        gt = _as_ids(gt_ids, "gt_ids")
+        _as_points(gt_xy, "gt_xy", gt.size, "gt_ids")
+        self._add_frame(gt, _EMPTY_IDS, np.empty((gt.size, 0), dtype=np.float64))
+
+    def _add_frame(
+        self, gt: NDArray[np.int64], hyp: NDArray[np.int64], dist: NDArray[np.float64]
+    ) -> None:
+        """Match one validated frame and record its events."""
+        n, m = dist.shape
+        gt_match = np.full(n, -1, dtype=np.int64)
+        hyp_taken = np.zeros(m, dtype=bool)
+        matched_distances = 0.0
+        matches = 0
+        if n and m:
+            gated = np.isfinite(dist)
+            gt_list = gt.tolist()
+            hyp_list = hyp.tolist()
+            # 1. keep each object's most recent correspondence when still possible
+            if self._last_hyp:
+                column = {h: j for j, h in enumerate(hyp_list)}
+                for i, o in enumerate(gt_list):
+                    previous = self._last_hyp.get(o)
+                    j = -1 if previous is None else column.get(previous, -1)
+                    if j >= 0 and not hyp_taken[j] and gated[i, j]:
+                        gt_match[i] = j
+                        hyp_taken[j] = True
+                        matched_distances += float(dist[i, j])
+                        matches += 1
+            # 2. assign the rest: most pairs within the gate, then least total distance
+            free_rows = np.flatnonzero(gt_match < 0)
+            free_cols = np.flatnonzero(~hyp_taken)
+            if free_rows.size and free_cols.size:
+                rr, cc = _max_matching_min_cost(dist[np.ix_(free_rows, free_cols)])
+                for i, j in zip(free_rows[rr].tolist(), free_cols[cc].tolist(), strict=True):
+                    o, h = gt_list[i], hyp_list[j]
+                    previous = self._last_hyp.get(o)
+                    if previous is not None and previous != h:
+                        self._switches += 1
+                    self._last_hyp[o] = h
+                    gt_match[i] = j
+                    hyp_taken[j] = True
+                    matched_distances += float(dist[i, j])
+                    matches += 1
+            vi, vj = np.nonzero(gated)
+            self._pair_gt.append(gt[vi])
+            self._pair_hyp.append(hyp[vj])
+        self._frames += 1
+        self._matches += matches
+        self._distance_sum += matched_distances
+        self._fn += n - matches
+        self._fp += m - matches
+        self._gt_ids.append(gt)
+        self._gt_matched.append(gt_match >= 0)
+        self._hyp_ids.append(hyp)
+
+    def compute(self) -> MotMetrics:
+        """Compute the metrics over all frames added so far.
+
+        Returns
+        -------
+        MotMetrics
+            CLEAR MOT counts and ratios, track-level counts and identity measures.
+        """
+        gt_all = np.concatenate(self._gt_ids) if self._gt_ids else _EMPTY_IDS
+        matched_all = (
+            np.concatenate(self._gt_matched) if self._gt_matched else np.zeros(0, dtype=bool)
+        )
+        hyp_all = np.concatenate(self._hyp_ids) if self._hyp_ids else _EMPTY_IDS
+        gt_objects = int(gt_all.size)
+        hyp_objects = int(hyp_all.size)
+
+        gt_uniq, gt_inv = np.unique(gt_all, return_inverse=True)
+        hyp_uniq, hyp_inv = np.unique(hyp_all, return_inverse=True)
+        gt_frames = np.bincount(gt_inv, minlength=gt_uniq.size)
+        hyp_frames = np.bincount(hyp_inv, minlength=hyp_uniq.size)
+
+        ratio = np.bincount(gt_inv, weights=matched_all, minlength=gt_uniq.size)
+        if gt_uniq.size:
+            ratio = ratio / gt_frames
+        mostly_tracked = int(np.count_nonzero(ratio >= _MOSTLY_TRACKED_RATIO))
+        mostly_lost = int(np.count_nonzero(ratio < _MOSTLY_LOST_RATIO))
+        partially_tracked = int(gt_uniq.size) - mostly_tracked - mostly_lost
+
+        fragmentations = _count_fragmentations(gt_inv, matched_all)
+        idtp = self._identity_true_positives(gt_uniq, gt_frames, hyp_uniq, hyp_frames)
+
+        matches = self._matches
+        errors = self._fn + self._fp + self._switches
+        return MotMetrics(
+            mota=1.0 - errors / gt_objects if gt_objects else math.nan,
+            motp=self._distance_sum / matches if matches else math.nan,
+            idf1=_ratio(2 * idtp, gt_objects + hyp_objects),
+            idp=_ratio(idtp, hyp_objects),
+            idr=_ratio(idtp, gt_objects),
+            precision=_ratio(matches, hyp_objects),
+            recall=_ratio(matches, gt_objects),
+            fp=self._fp,
+            fn=self._fn,
+            id_switches=self._switches,
+            fragmentations=fragmentations,
+            matches=matches,
+            frames=self._frames,
+            gt_objects=gt_objects,
+            hyp_objects=hyp_objects,
+            gt_tracks=int(gt_uniq.size),
+            hyp_tracks=int(hyp_uniq.size),
+            mostly_tracked=mostly_tracked,
+            partially_tracked=partially_tracked,
+            mostly_lost=mostly_lost,
+        )
+
+    def _identity_true_positives(
+        self,
+        gt_uniq: NDArray[np.int64],
+        gt_frames: NDArray[np.int64],
+        hyp_uniq: NDArray[np.int64],
+        hyp_frames: NDArray[np.int64],
+    ) -> int:
+        """Return IDTP of the optimal one-to-one trajectory assignment (Ristani et al.)."""
+        if not self._pair_gt:
+            return 0
+        pair_gt = np.concatenate(self._pair_gt)
+        if pair_gt.size == 0:
+            return 0
+        pair_hyp = np.concatenate(self._pair_hyp)
+        # Only trajectories with at least one gated frame can contribute identity true
+        # positives; all others go to their dummy partner in any optimal assignment, so
+        # leaving them out does not change IDTP and keeps the matrix small.
+        g_act, g_idx = np.unique(np.searchsorted(gt_uniq, pair_gt), return_inverse=True)
+        h_act, h_idx = np.unique(np.searchsorted(hyp_uniq, pair_hyp), return_inverse=True)
+        n_g, n_h = g_act.size, h_act.size
+        tp = np.bincount(g_idx * n_h + h_idx, minlength=n_g * n_h).reshape(n_g, n_h)
+        g_len = gt_frames[g_act].astype(np.float64)
+        h_len = hyp_frames[h_act].astype(np.float64)
+        # (G + H) square cost: real gt rows x real hyp columns cost IDFN + IDFP of the pair;
+        # a gt row may instead take its own dummy column (all its frames are IDFN), a hyp
+        # column its own dummy row (all its frames are IDFP); dummy x dummy costs nothing.
+        size = n_g + n_h
+        cost = np.full((size, size), np.inf)
+        cost[:n_g, :n_h] = g_len[:, None] + h_len[None, :] - 2.0 * tp
+        cost[np.arange(n_g), n_h + np.arange(n_g)] = g_len
+        cost[n_g + np.arange(n_h), np.arange(n_h)] = h_len
+        cost[n_g:, n_h:] = 0.0
+        rows, cols = linear_sum_assignment(cost)
+        real = (rows < n_g) & (cols < n_h)
+        return int(tp[rows[real], cols[real]].sum())
+
+
+def _count_fragmentations(gt_inv: NDArray[np.intp], matched: NDArray[np.bool_]) -> int:
+    """Count matched-to-missed transitions followed by a later match, per gt track.
+
+    ``gt_inv`` gives the dense track index of every ground-truth occurrence in frame
+    order and ``matched`` whether that occurrence was matched. Frames in which the
+    object is absent are skipped, as in py-motmetrics.
+    """
+    if gt_inv.size < 2:
+        return 0
+    order = np.argsort(gt_inv, kind="stable")  # grouped by track, frame order kept
+    track = gt_inv[order]
+    hit = matched[order]
+    position = np.arange(track.size)
+    starts = np.flatnonzero(np.r_[True, track[1:] != track[:-1]])
+    last_hit = np.maximum.reduceat(np.where(hit, position, -1), starts)
+    last_hit_of = np.repeat(last_hit, np.diff(np.r_[starts, track.size]))
+    begins_gap = (track[1:] == track[:-1]) & hit[:-1] & ~hit[1:] & (position[1:] < last_hit_of[1:])
+    return int(np.count_nonzero(begins_gap))
+
+
+def _ratio(numerator: float, denominator: float) -> float:
+    """Divide, returning NaN for a zero denominator."""
+    return float(numerator) / denominator if denominator else math.nan

@@ -1,0 +1,54 @@
+"""The common ``main`` of node processes: flags, config, bus, node, clean exit codes."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+
+from openptrack_py.config import NetworkConfig
+from openptrack_py.errors import ConfigError
+from openptrack_py.runtime.args import add_common_arguments, bus_from_args, network_from_args
+from openptrack_py.runtime.logs import configure_logging
+from openptrack_py.runtime.node import Node
+
+EXIT_OK = 0
+EXIT_CONFIG = 2
+
+
+def node_parser(prog: str, description: str) -> argparse.ArgumentParser:
+    """An argument parser with the shared node flags."""
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    add_common_arguments(parser)
+    parser.add_argument(
+        "--name", dest="name", default=None, help="node name (default: the node kind)"
+    )
+    return parser
+
+
+def run_node(
+    kind: str,
+    parser: argparse.ArgumentParser,
+    body: Callable[[NetworkConfig, Node, argparse.Namespace], None],
+    argv: Sequence[str] | None = None,
+) -> int:
+    """Parse flags, load the network file, open the bus and run ``body`` in a node.
+
+    Returns the process exit code: 0 after a clean stop (including Ctrl-C/SIGTERM),
+    2 for configuration errors (printed, naming the key).
+    """
+    args = parser.parse_args(argv)
+    name = args.name or kind
+    configure_logging(name, args.log_level, args.log_format)
+    try:
+        cfg = network_from_args(args)
+        with (
+            bus_from_args(cfg, args) as bus,
+            Node(name, bus, site=cfg.site, stats_interval_s=cfg.stats_interval_s) as node,
+        ):
+            node.install_signal_handlers()
+            body(cfg, node, args)
+    except ConfigError as exc:
+        print(f"{parser.prog}: {exc}", file=sys.stderr)
+        return EXIT_CONFIG
+    return EXIT_OK

@@ -1,0 +1,180 @@
+"""Plays a scenario: world, sensors and ground truth as one time-ordered event stream.
+
+:meth:`Simulator.events` yields :class:`SensorFrame` (a sensor's batch, at the true time
+it would reach the network) and :class:`TruthFrame` (everyone's true state) in
+non-decreasing time order. The same stream drives the real-time ``sim`` node, which
+sleeps until each event's time, and offline evaluation, which does not sleep at all.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from openptrack_py.messages.detection import DetectionBatch
+from openptrack_py.messages.ground_truth import GroundTruthFrame, PersonState
+from openptrack_py.sim.scenarios import Scenario
+from openptrack_py.sim.sensors import SensorModel
+from openptrack_py.sim.world import Snapshot, World
+
+DEFAULT_START_TIME = 1_767_225_600.0
+"""2026-01-01T00:00:00Z: the clock of offline runs, so their stamps are reproducible."""
+
+
+@dataclass(frozen=True, slots=True)
+class SensorFrame:
+    """One sensor batch as it reaches the network.
+
+    Parameters
+    ----------
+    time : float
+        True arrival time (capture time plus latency), UNIX seconds.
+    capture_time : float
+        True capture time, UNIX seconds. ``batch.stamp`` differs from it by the
+        sensor's clock offset.
+    batch : DetectionBatch
+        What the sensor publishes.
+    person_ids : tuple of int
+        Ground-truth person behind each detection (0 for clutter and splits).
+    """
+
+    time: float
+    capture_time: float
+    batch: DetectionBatch
+    person_ids: tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class TruthFrame:
+    """Ground truth at one instant.
+
+    Parameters
+    ----------
+    time : float
+        True time, UNIX seconds.
+    frame : GroundTruthFrame
+        Everyone present.
+    """
+
+    time: float
+    frame: GroundTruthFrame
+
+
+Event = SensorFrame | TruthFrame
+
+_TRUTH = -1
+
+
+class Simulator:
+    """Runs a :class:`~openptrack_py.sim.scenarios.Scenario`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        What to simulate.
+    start_time : float
+        UNIX time of the scenario's start (wall clock for live runs).
+    ground_truth_rate_hz : float or None
+        Rate of :class:`TruthFrame` events; ``None`` for none.
+    dt : float
+        World step, seconds.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        start_time: float = DEFAULT_START_TIME,
+        ground_truth_rate_hz: float | None = 30.0,
+        dt: float = 0.04,
+    ) -> None:
+        self.scenario = scenario
+        self.start_time = start_time
+        self.ground_truth_rate_hz = ground_truth_rate_hz
+        root = np.random.SeedSequence(scenario.seed)
+        world_seq, sensor_seq = root.spawn(2)
+        world_rng = np.random.default_rng(world_seq)
+        self.world = World(scenario.room, scenario.make_director(world_rng), world_rng, dt=dt)
+        self.models = [
+            SensorModel(spec, scenario.room, np.random.default_rng(seq))
+            for spec, seq in zip(
+                scenario.sensors, sensor_seq.spawn(len(scenario.sensors)), strict=True
+            )
+        ]
+        self._frame_rngs = [
+            np.random.default_rng([scenario.seed, 11, i]) for i in range(len(self.models))
+        ]
+
+    @property
+    def sensor_ids(self) -> list[str]:
+        """Ids of the simulated sensors."""
+        return [m.spec.id for m in self.models]
+
+    def covered(self, snap: Snapshot) -> np.ndarray:
+        """Mask of people whose head is in view of at least one sensor."""
+        mask = np.zeros(len(snap), dtype=bool)
+        for model in self.models:
+            mask |= model.covers(snap.pos, snap.height)
+        return mask
+
+    def truth(self, snap: Snapshot, seq: int) -> GroundTruthFrame:
+        """Ground-truth message for a world snapshot."""
+        covered = self.covered(snap)
+        people = tuple(
+            PersonState(
+                id=int(snap.ids[i]),
+                x=float(snap.pos[i, 0]),
+                y=float(snap.pos[i, 1]),
+                height=float(snap.height[i]),
+                vx=float(snap.vel[i, 0]),
+                vy=float(snap.vel[i, 1]),
+                kind=str(snap.kinds[i]),
+                covered=bool(covered[i]),
+            )
+            for i in range(len(snap))
+        )
+        return GroundTruthFrame(stamp=self.start_time + snap.t, seq=seq, people=people)
+
+    def events(self) -> Iterator[Event]:
+        """Every event of the run, in non-decreasing ``time`` order."""
+        end = self.scenario.duration_s
+        captures: list[tuple[float, int, int]] = []  # (scenario time, source, frame index)
+        for i, model in enumerate(self.models):
+            heapq.heappush(captures, (model.spec.phase_s, i, 0))
+        if self.ground_truth_rate_hz:
+            heapq.heappush(captures, (0.0, _TRUTH, 0))
+        pending: list[tuple[float, int, int, SensorFrame]] = []
+        while captures:
+            t, source, k = heapq.heappop(captures)
+            if end is not None and t > end:
+                continue
+            while pending and pending[0][0] <= self.start_time + t:
+                yield heapq.heappop(pending)[3]
+            snap = self.world.state_at(t)
+            if source == _TRUTH:
+                yield TruthFrame(self.start_time + t, self.truth(snap, k))
+                heapq.heappush(captures, ((k + 1) / self.ground_truth_rate_hz, _TRUTH, k + 1))
+                continue
+            model = self.models[source]
+            spec = model.spec
+            observation = model.observe(snap)
+            heapq.heappush(captures, (spec.phase_s + (k + 1) / spec.rate_hz, source, k + 1))
+            frame_rng = self._frame_rngs[source]
+            latency = max(0.0, spec.latency_s + frame_rng.normal(0.0, spec.latency_jitter_s))
+            if frame_rng.random() < spec.frame_drop_probability:
+                continue  # lost frame: its seq number is never published
+            capture = self.start_time + t
+            batch = DetectionBatch(
+                sensor_id=spec.id,
+                seq=k,
+                stamp=capture + spec.clock_offset_s,
+                frame_id="world",
+                detections=observation.detections,
+            )
+            frame = SensorFrame(capture + latency, capture, batch, observation.person_ids)
+            heapq.heappush(pending, (frame.time, source, k, frame))
+        while pending:
+            yield heapq.heappop(pending)[3]

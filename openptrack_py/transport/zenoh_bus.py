@@ -1,0 +1,290 @@
+"""The real bus: one Zenoh session.
+
+Peer mode by default with explicit endpoints and multicast scouting off, so nodes meet
+only where the network file says. Reliable publishers use ``CongestionControl.BLOCK``
+(nothing is dropped when a subscriber is slow); unreliable ones use ``DROP`` with
+``express`` for latest-only data.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import threading
+from collections.abc import Iterable, Sequence
+
+import zenoh
+
+from openptrack_py.config import ZenohConfig
+from openptrack_py.errors import ConfigError
+from openptrack_py.transport.base import (
+    LivelinessHandler,
+    QueryHandler,
+    Sample,
+    SampleHandler,
+)
+from openptrack_py.transport.keys import validate_key
+
+log = logging.getLogger(__name__)
+
+_zenoh_log_once = threading.Lock()
+_zenoh_log_done = False
+
+
+def _init_zenoh_logging() -> None:
+    global _zenoh_log_done
+    with _zenoh_log_once:
+        if not _zenoh_log_done:
+            zenoh.init_log_from_env_or("error")
+            _zenoh_log_done = True
+
+
+def build_zenoh_config(
+    cfg: ZenohConfig,
+    *,
+    listen: Sequence[str] | None = None,
+    connect: Sequence[str] | None = None,
+    as_hub: bool = False,
+) -> zenoh.Config:
+    """Translate a :class:`~openptrack_py.config.ZenohConfig` into a ``zenoh.Config``.
+
+    Parameters
+    ----------
+    cfg : ZenohConfig
+        The network's Zenoh section.
+    listen, connect : sequence of str, optional
+        Replace ``cfg.listen`` / ``cfg.connect`` (command-line ``-l`` / ``-e``).
+    as_hub : bool
+        Listen on ``cfg.hub`` instead of connecting to it (the launcher on the hub host).
+
+    Raises
+    ------
+    ConfigError
+        If the Zenoh JSON5 file cannot be read or a value is refused by Zenoh.
+    """
+    if cfg.config_file is not None:
+        try:
+            zcfg = zenoh.Config.from_file(str(cfg.config_file))
+        except Exception as exc:
+            raise ConfigError(f"zenoh.config_file: cannot load {cfg.config_file}: {exc}") from None
+    else:
+        zcfg = zenoh.Config()
+    listen_eps = list(cfg.listen if listen is None else listen)
+    connect_eps = list(cfg.connect if connect is None else connect)
+    if cfg.hub is not None:
+        if as_hub:
+            listen_eps = [cfg.hub, *[e for e in listen_eps if e != cfg.hub]]
+        elif cfg.hub not in connect_eps:
+            connect_eps.append(cfg.hub)
+    settings = {
+        "mode": json.dumps(cfg.mode),
+        "listen/endpoints": json.dumps(listen_eps if cfg.mode == "peer" or as_hub else []),
+        "connect/endpoints": json.dumps(connect_eps),
+        "scouting/multicast/enabled": json.dumps(cfg.multicast_scouting),
+    }
+    for key, value in settings.items():
+        try:
+            zcfg.insert_json5(key, value)
+        except Exception as exc:
+            raise ConfigError(f"zenoh: Zenoh refused {key}={value}: {exc}") from None
+    return zcfg
+
+
+def _safe(handler: SampleHandler, what: str) -> SampleHandler:
+    def call(sample: Sample) -> None:
+        try:
+            handler(sample)
+        except Exception:  # a handler bug must not kill Zenoh's delivery thread
+            log.exception("handler for %s raised", what)
+
+    return call
+
+
+class _ZenohPublisher:
+    def __init__(self, session: zenoh.Session, key: str, reliable: bool) -> None:
+        self.key = key
+        self._pub = session.declare_publisher(
+            key,
+            congestion_control=(
+                zenoh.CongestionControl.BLOCK if reliable else zenoh.CongestionControl.DROP
+            ),
+            express=not reliable,
+        )
+        self._closed = False
+
+    def put(self, payload: bytes) -> None:
+        self._pub.put(payload)
+
+    def has_subscribers(self) -> bool:
+        return bool(self._pub.matching_status)
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            with contextlib.suppress(Exception):  # the session may be closed already
+                self._pub.undeclare()
+
+
+class _Declared:
+    """Wraps a Zenoh entity so that closing it twice, or after the session, is harmless."""
+
+    def __init__(self, entity: object) -> None:
+        self._entity = entity
+
+    def close(self) -> None:
+        entity, self._entity = self._entity, None
+        if entity is not None:
+            with contextlib.suppress(Exception):
+                entity.undeclare()  # type: ignore[attr-defined]
+
+
+class ZenohBus:
+    """A :class:`~openptrack_py.transport.base.Bus` over one Zenoh session.
+
+    Parameters
+    ----------
+    cfg : ZenohConfig, optional
+        Endpoints and mode; defaults to peer mode connecting to ``tcp/127.0.0.1:7447``.
+    listen, connect : sequence of str, optional
+        Override the configured endpoints.
+    as_hub : bool
+        Listen on the hub endpoint instead of connecting to it.
+    """
+
+    def __init__(
+        self,
+        cfg: ZenohConfig | None = None,
+        *,
+        listen: Sequence[str] | None = None,
+        connect: Sequence[str] | None = None,
+        as_hub: bool = False,
+    ) -> None:
+        _init_zenoh_logging()
+        self.config = cfg if cfg is not None else ZenohConfig()
+        zcfg = build_zenoh_config(self.config, listen=listen, connect=connect, as_hub=as_hub)
+        try:
+            self.session = zenoh.open(zcfg)
+        except Exception as exc:
+            raise ConfigError(f"zenoh: cannot open a session: {exc}") from None
+        self._closed = False
+        self._lock = threading.Lock()
+
+    def __enter__(self) -> ZenohBus:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called."""
+        return self._closed
+
+    def publisher(self, key: str, *, reliable: bool = True) -> _ZenohPublisher:
+        """Declare a publisher (BLOCK congestion control when ``reliable``)."""
+        return _ZenohPublisher(self.session, validate_key(key), reliable)
+
+    def put(self, key: str, payload: bytes, *, reliable: bool = True) -> None:
+        """Publish once."""
+        self.session.put(
+            validate_key(key),
+            payload,
+            congestion_control=(
+                zenoh.CongestionControl.BLOCK if reliable else zenoh.CongestionControl.DROP
+            ),
+        )
+
+    def subscribe(self, keyexpr: str, handler: SampleHandler) -> _Declared:
+        """Call ``handler`` on Zenoh's thread for every matching sample."""
+        safe = _safe(handler, keyexpr)
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            if sample.kind == zenoh.SampleKind.PUT:
+                safe(Sample(str(sample.key_expr), sample.payload.to_bytes()))
+
+        return _Declared(
+            self.session.declare_subscriber(validate_key(keyexpr, allow_wildcards=True), on_sample)
+        )
+
+    def declare_token(self, key: str) -> _Declared:
+        """Announce a liveliness token."""
+        return _Declared(self.session.liveliness().declare_token(validate_key(key)))
+
+    def alive(self, keyexpr: str, timeout_s: float = 1.0) -> list[str]:
+        """Keys of the liveliness tokens matching ``keyexpr``."""
+        replies = self.session.liveliness().get(
+            validate_key(keyexpr, allow_wildcards=True), timeout=timeout_s
+        )
+        keys = {str(r.ok.key_expr) for r in replies if r.ok is not None}
+        return sorted(keys)
+
+    def subscribe_liveliness(self, keyexpr: str, handler: LivelinessHandler) -> _Declared:
+        """Report tokens appearing (``True``) and disappearing (``False``)."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            try:
+                handler(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+            except Exception:
+                log.exception("liveliness handler for %s raised", keyexpr)
+
+        return _Declared(
+            self.session.liveliness().declare_subscriber(
+                validate_key(keyexpr, allow_wildcards=True), on_sample, history=True
+            )
+        )
+
+    def serve(self, keyexpr: str, handler: QueryHandler) -> _Declared:
+        """Answer queries matching ``keyexpr``."""
+        expr = validate_key(keyexpr, allow_wildcards=True)
+
+        def on_query(query: zenoh.Query) -> None:
+            asked = str(query.key_expr)
+            payload = query.payload.to_bytes() if query.payload is not None else None
+            try:
+                reply = handler(asked, payload)
+            except Exception:
+                log.exception("query handler for %s raised", expr)
+                return
+            if reply is not None:
+                query.reply(asked if "*" not in asked else expr, reply)
+
+        return _Declared(self.session.declare_queryable(expr, on_query))
+
+    def query(
+        self, selector: str, payload: bytes | None = None, timeout_s: float = 1.0
+    ) -> list[Sample]:
+        """Ask every matching queryable; wait at most ``timeout_s``."""
+        replies = self.session.get(
+            validate_key(selector, allow_wildcards=True), payload=payload, timeout=timeout_s
+        )
+        return [
+            Sample(str(r.ok.key_expr), r.ok.payload.to_bytes())
+            for r in replies
+            if r.ok is not None
+        ]
+
+    def peers(self) -> list[str]:
+        """Zenoh ids of the peers this session is linked to."""
+        return [str(z) for z in self.session.info.peers_zid()]
+
+    def close(self) -> None:
+        """Close the session; idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        try:
+            self.session.close()
+        except Exception:
+            log.debug("zenoh session close raised", exc_info=True)
+
+
+def endpoints_from_flags(values: Iterable[str] | None) -> list[str] | None:
+    """Normalise repeated/comma-separated ``-e``/``-l`` flags; ``None`` when none given."""
+    if not values:
+        return None
+    out: list[str] = []
+    for value in values:
+        out.extend(v.strip() for v in value.split(",") if v.strip())
+    return out
