@@ -41,10 +41,31 @@ ENDPOINT_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream")
 M = TypeVar("M", bound=BaseModel)
 
 
-class StrictModel(BaseModel):
-    """Base of every config section: unknown keys are errors, values are immutable."""
+def _is_numeric(annotation: Any) -> bool:
+    if annotation in (int, float):
+        return True
+    return any(_is_numeric(a) for a in typing.get_args(annotation))
 
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+class StrictModel(BaseModel):
+    """Base of every config section: unknown keys are errors, values are immutable.
+
+    Numbers must be finite, and YAML booleans (``true``, ``yes``, ``on``) are not
+    numbers.
+    """
+
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False
+    )
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_numbers(cls, value: Any, info: Any) -> Any:
+        if isinstance(value, bool):
+            field = cls.model_fields.get(info.field_name)
+            if field is not None and _is_numeric(field.annotation):
+                raise ValueError("must be a number, not true/false")
+        return value
 
 
 def _check_endpoint(value: str) -> str:
@@ -346,7 +367,8 @@ def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> dict[str,
                 else:
                     node = node[index]
             else:
-                raise ConfigError(f"override {override!r}: {where} is not a mapping or list")
+                parent = ".".join(chunks[:i])
+                raise ConfigError(f"override {override!r}: {parent} is not a mapping or list")
     return data
 
 
@@ -460,9 +482,11 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:

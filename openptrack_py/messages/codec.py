@@ -33,7 +33,7 @@ MAX_COORD_M = 1.0e4
 """Positions beyond 10 km are not people in a room: rejected as corrupt."""
 MAX_NAME_LEN = 128
 
-_NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
+_NAME_RE = re.compile(r"[A-Za-z0-9_.\-]+")
 _MAX_INT = (1 << 63) - 1
 
 
@@ -80,7 +80,11 @@ def _name(obj: dict, key: str, path: str) -> str:
         value = obj[key]
     except KeyError:
         raise WireFormatError(f"{path}{key}: missing") from None
-    if type(value) is not str or not 0 < len(value) <= MAX_NAME_LEN or not _NAME_RE.match(value):
+    if (
+        type(value) is not str
+        or not 0 < len(value) <= MAX_NAME_LEN
+        or not _NAME_RE.fullmatch(value)
+    ):
         raise _fail(
             path + key, f"a name of 1-{MAX_NAME_LEN} characters from [A-Za-z0-9_.-]", value
         )
@@ -123,7 +127,10 @@ def _check_keys(obj: Any, allowed: frozenset[str], path: str) -> None:
 
 def _parse(payload: bytes | bytearray | memoryview | str, kind: str) -> dict:
     if isinstance(payload, str):
-        payload = payload.encode()
+        try:
+            payload = payload.encode()
+        except UnicodeEncodeError as exc:
+            raise WireFormatError(f"message: not valid UTF-8 ({exc.reason})") from None
     size = len(payload)
     if size > MAX_PAYLOAD_BYTES:
         raise WireFormatError(f"message: {size} bytes exceeds the {MAX_PAYLOAD_BYTES}-byte limit")
@@ -193,6 +200,8 @@ def encode_detection_batch(batch: DetectionBatch) -> bytes:
         if d.appearance is not None:
             item["appearance"] = list(d.appearance)
         if d.face is not None:
+            if not all(math.isfinite(v) for v in d.face):
+                raise WireFormatError("cannot encode detection: face has a non-finite value")
             item["face"] = list(d.face)
         dets.append(item)
     _check_finite("detection batch", (batch.stamp,), "stamp")
@@ -427,6 +436,7 @@ _PERSON_KINDS = ("adult", "child")
 
 def encode_ground_truth(frame: GroundTruthFrame) -> bytes:
     """Encode a :class:`GroundTruthFrame` to wire bytes."""
+    _check_finite("ground truth", (frame.stamp,), "stamp")
     people = []
     for p in frame.people:
         _check_finite("person", (p.x, p.y, p.height, p.vx, p.vy), "x y height vx vy")
@@ -500,6 +510,11 @@ _STATS_KEYS = frozenset(
 
 def encode_node_stats(stats: NodeStats) -> bytes:
     """Encode :class:`NodeStats` to wire bytes."""
+    _check_finite("stats", (stats.stamp, stats.uptime_s), "stamp uptime_s")
+    for group, values in (("rates_hz", stats.rates_hz), ("timings_ms", stats.timings_ms)):
+        for name, value in values.items():
+            if not math.isfinite(value):
+                raise WireFormatError(f"cannot encode stats: {group}.{name} is {value}")
     return _dumps(
         {
             "v": SCHEMA_VERSION,

@@ -19,6 +19,7 @@ The same name, seed and options always give the same people, paths and sensor no
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -512,6 +513,14 @@ _BUILDERS: dict[str, tuple[Callable[..., tuple], str]] = {
     "stress": (_stress, "120 people in a 30 x 20 m hall, 10 sensors"),
 }
 SCENARIO_NAMES = tuple(_BUILDERS)
+_OPTION_MINIMUM = {"people": 0, "children": 1}  # an empty hall is fine, a class is not
+
+
+def scenario_options(name: str) -> list[str]:
+    """Names of the options (keyword parameters) a scenario accepts."""
+    builder = _BUILDERS[name][0]
+    params = list(inspect.signature(builder).parameters.values())[2:]  # after seed, rng
+    return [p.name for p in params]
 
 
 def describe_scenarios() -> dict[str, str]:
@@ -549,14 +558,22 @@ def build_scenario(
     if name not in _BUILDERS:
         raise ConfigError(f"scenario: unknown {name!r} (allowed: {', '.join(SCENARIO_NAMES)})")
     builder, description = _BUILDERS[name]
+    allowed = scenario_options(name)
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise ConfigError(
+            f"scenario {name}: unknown option {', '.join(unknown)} "
+            f"(allowed: {', '.join(allowed) or 'none'})"
+        )
+    for key, value in options.items():
+        least = _OPTION_MINIMUM.get(key, 1)
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise ConfigError(
+                f"scenario {name}: {key} must be an integer >= {least} (received {value!r})"
+            )
     root = np.random.SeedSequence(seed)
     layout_rng = np.random.default_rng(root.spawn(1)[0])
-    try:
-        room, default_sensors, make_director, default_duration = builder(
-            seed, layout_rng, **options
-        )
-    except TypeError:
-        raise ConfigError(f"scenario {name}: unknown option in {sorted(options)}") from None
+    room, default_sensors, make_director, default_duration = builder(seed, layout_rng, **options)
     chosen = list(sensors) if sensors else default_sensors
     phase_rng = np.random.default_rng([seed, 7])
     specs = []

@@ -566,8 +566,10 @@ class SensorModel:
             true_world @ self.reported_from_world[:3, :3].T + self.reported_from_world[:3, 3]
         )
         distance = np.linalg.norm(true_world - self.origin, axis=1)
-        row_idx = np.array(rows)
-        radius = np.where(row_idx >= 0, snap.radius[np.maximum(row_idx, 0)], 0.25)
+        row_idx = np.array(rows, dtype=int)
+        real = row_idx >= 0
+        radius = np.full(len(rows), 0.25)  # clutter: a person-sized box
+        radius[real] = snap.radius[row_idx[real]]
         height = np.clip(np.array(heights), 0.0, 10.0)
         boxes = self._boxes(true_world[:, :2], height, radius).tolist()
         looks = self._appearance(snap, row_idx).tolist()

@@ -147,6 +147,8 @@ class Simulator:
         if self.ground_truth_rate_hz:
             heapq.heappush(captures, (0.0, _TRUTH, 0))
         pending: list[tuple[float, int, int, SensorFrame]] = []
+        # A sensor's pipeline publishes its frames in order: jitter never reorders them.
+        last_arrival = [-float("inf")] * len(self.models)
         while captures:
             t, source, k = heapq.heappop(captures)
             if end is not None and t > end:
@@ -167,6 +169,8 @@ class Simulator:
             if frame_rng.random() < spec.frame_drop_probability:
                 continue  # lost frame: its seq number is never published
             capture = self.start_time + t
+            arrival = max(capture + latency, last_arrival[source])
+            last_arrival[source] = arrival
             batch = DetectionBatch(
                 sensor_id=spec.id,
                 seq=k,
@@ -174,7 +178,7 @@ class Simulator:
                 frame_id="world",
                 detections=observation.detections,
             )
-            frame = SensorFrame(capture + latency, capture, batch, observation.person_ids)
+            frame = SensorFrame(arrival, capture, batch, observation.person_ids)
             heapq.heappush(pending, (frame.time, source, k, frame))
         while pending:
             yield heapq.heappop(pending)[3]

@@ -16,6 +16,9 @@ import numpy as np
 
 PersonKind = Literal["adult", "child"]
 
+# Obstacle faces as (axis, outward sign): -x, +x, -y, +y.
+_FACES = ((0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0))
+
 
 @dataclass(frozen=True)
 class Obstacle:
@@ -339,6 +342,7 @@ class World:
     def _constrain(
         self, pos: np.ndarray, vel: np.ndarray, radius: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
+        pos, vel = self._separate(pos, vel, radius)
         r = self.room
         lo = radius[:, None]
         hi = np.column_stack([r.width - radius, r.depth - radius])
@@ -363,15 +367,38 @@ class World:
                     ]
                 )
                 face = int(np.argmin(exits))
-                axis, sign = (
-                    (0, -1.0)
-                    if face == 0
-                    else (0, 1.0)
-                    if face == 1
-                    else ((1, -1.0) if face == 2 else (1, 1.0))
-                )
+                axis, sign = _FACES[face]
                 pos[i, axis] += sign * exits[face]
                 vel[i, axis] = 0.0
+        return pos, vel
+
+    MIN_GAP = 0.9
+    """People never stand closer than this fraction of the sum of their radii."""
+
+    def _separate(
+        self, pos: np.ndarray, vel: np.ndarray, radius: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Push apart people whose bodies overlap, and stop them walking into each other."""
+        if len(pos) < 2:
+            return pos, vel
+        delta = pos[:, None, :] - pos[None, :, :]
+        dist = np.linalg.norm(delta, axis=2)
+        reach = self.MIN_GAP * (radius[:, None] + radius[None, :])
+        rows, cols = np.nonzero(np.triu(dist < reach, k=1))
+        for i, j in zip(rows.tolist(), cols.tolist(), strict=True):
+            d = pos[i] - pos[j]
+            gap = float(np.hypot(d[0], d[1]))
+            need = self.MIN_GAP * (radius[i] + radius[j])
+            if gap >= need:
+                continue  # already resolved by an earlier push this step
+            n = d / gap if gap > 1e-9 else np.array([1.0, 0.0])
+            shift = 0.5 * (need - gap) * n
+            pos[i] += shift
+            pos[j] -= shift
+            closing = float(np.dot(vel[i] - vel[j], n))
+            if closing < 0:  # moving towards each other: remove that part
+                vel[i] -= 0.5 * closing * n
+                vel[j] += 0.5 * closing * n
         return pos, vel
 
     # ---------------------------------------------------------------- sampling

@@ -1,6 +1,6 @@
 """Transport: the :class:`Bus` protocol, :class:`ZenohBus` and :class:`MemoryBus`."""
 
-from openptrack_py.transport.base import Bus, Closable, Publisher, Sample
+from openptrack_py.transport.base import Bus, Closable, Publisher, Sample, wait_for_subscribers
 from openptrack_py.transport.keys import SiteKeys, key_matches
 from openptrack_py.transport.memory import MemoryBus, MemoryNetwork
 
@@ -14,6 +14,7 @@ __all__ = [
     "SiteKeys",
     "ZenohBus",
     "key_matches",
+    "wait_for_subscribers",
 ]
 
 

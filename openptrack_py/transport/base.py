@@ -9,6 +9,7 @@ hand work to the node's own loop.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -78,7 +79,10 @@ class Bus(Protocol):
         """Call ``handler`` for every sample whose key matches ``keyexpr``."""
 
     def declare_token(self, key: str) -> Closable:
-        """Announce a liveliness token that lives until closed or the session ends."""
+        """Announce a liveliness token that lives until closed or the session ends.
+
+        Keep the returned object: dropping it may undeclare the token.
+        """
 
     def alive(self, keyexpr: str, timeout_s: float = 1.0) -> list[str]:
         """Keys of the liveliness tokens currently matching ``keyexpr``."""
@@ -99,3 +103,22 @@ class Bus(Protocol):
 
     def close(self) -> None:
         """Close the session and everything declared on it; idempotent."""
+
+
+def wait_for_subscribers(publisher: Publisher, timeout_s: float = 10.0) -> bool:
+    """Wait until ``publisher`` has a matching subscriber.
+
+    Publishers that must not lose their first samples (tests, one-shot tools) wait here
+    before putting; live nodes simply start publishing.
+
+    Returns
+    -------
+    bool
+        Whether a subscriber matched within ``timeout_s``.
+    """
+    deadline = time.monotonic() + timeout_s
+    while not publisher.has_subscribers():
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.002)
+    return True

@@ -12,6 +12,7 @@ import contextlib
 import json
 import logging
 import threading
+import time
 from collections.abc import Iterable, Sequence
 
 import zenoh
@@ -117,7 +118,8 @@ class _ZenohPublisher:
         self._pub.put(payload)
 
     def has_subscribers(self) -> bool:
-        return bool(self._pub.matching_status)
+        # The property returns a MatchingStatus object (always truthy), not a bool.
+        return bool(self._pub.matching_status.matching)
 
     def close(self) -> None:
         if not self._closed:
@@ -150,6 +152,11 @@ class ZenohBus:
         Override the configured endpoints.
     as_hub : bool
         Listen on the hub endpoint instead of connecting to it.
+    settle_s : float
+        After opening, wait until the set of linked peers has not changed for this long
+        (at most ``10 * settle_s``). Queries and liveliness requests sent while a peer
+        mesh is still forming can go unanswered for seconds (measured: 2 of 3 fresh
+        processes got no reply within 3 s when querying at once, none lost after 50 ms).
     """
 
     def __init__(
@@ -159,6 +166,7 @@ class ZenohBus:
         listen: Sequence[str] | None = None,
         connect: Sequence[str] | None = None,
         as_hub: bool = False,
+        settle_s: float = 0.1,
     ) -> None:
         _init_zenoh_logging()
         self.config = cfg if cfg is not None else ZenohConfig()
@@ -169,6 +177,24 @@ class ZenohBus:
             raise ConfigError(f"zenoh: cannot open a session: {exc}") from None
         self._closed = False
         self._lock = threading.Lock()
+        if settle_s > 0 and not as_hub:
+            self._settle(settle_s)
+
+    def _links(self) -> frozenset[str]:
+        info = self.session.info
+        return frozenset(str(z) for z in (*info.peers_zid(), *info.routers_zid()))
+
+    def _settle(self, quiet_s: float) -> None:
+        deadline = time.monotonic() + 10 * quiet_s
+        links = self._links()
+        stable_since = time.monotonic()
+        while time.monotonic() < deadline:
+            time.sleep(quiet_s / 10)
+            current = self._links()
+            if current != links or not current:
+                links, stable_since = current, time.monotonic()
+            elif time.monotonic() - stable_since >= quiet_s:
+                return
 
     def __enter__(self) -> ZenohBus:
         return self
@@ -211,13 +237,30 @@ class ZenohBus:
         """Announce a liveliness token."""
         return _Declared(self.session.liveliness().declare_token(validate_key(key)))
 
-    def alive(self, keyexpr: str, timeout_s: float = 1.0) -> list[str]:
-        """Keys of the liveliness tokens matching ``keyexpr``."""
-        replies = self.session.liveliness().get(
-            validate_key(keyexpr, allow_wildcards=True), timeout=timeout_s
-        )
-        keys = {str(r.ok.key_expr) for r in replies if r.ok is not None}
-        return sorted(keys)
+    def alive(self, keyexpr: str, timeout_s: float = 0.5) -> list[str]:
+        """Keys of the liveliness tokens matching ``keyexpr``, collected for ``timeout_s``.
+
+        Uses a liveliness subscriber with history rather than a liveliness query: in peer
+        mode a query sent just after a token was declared elsewhere could go unanswered
+        for seconds (3 of 3 fresh processes), the subscriber's history never did (0 of 6).
+        """
+        present: set[str] = set()
+        lock = threading.Lock()
+
+        def on_change(key: str, alive: bool) -> None:
+            with lock:
+                if alive:
+                    present.add(key)
+                else:
+                    present.discard(key)
+
+        sub = self.subscribe_liveliness(keyexpr, on_change)
+        try:
+            time.sleep(timeout_s)
+        finally:
+            sub.close()
+        with lock:
+            return sorted(present)
 
     def subscribe_liveliness(self, keyexpr: str, handler: LivelinessHandler) -> _Declared:
         """Report tokens appearing (``True``) and disappearing (``False``)."""

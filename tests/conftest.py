@@ -1,0 +1,78 @@
+"""Shared fixtures: free loopback ports, Zenoh settings for tests, subprocess helpers."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from openptrack_py.config import ZenohConfig
+
+ROOT = Path(__file__).resolve().parent.parent
+PROCS = Path(__file__).resolve().parent / "procs"
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def hub_endpoint() -> str:
+    """A fresh loopback endpoint for a test's Zenoh hub."""
+    return f"tcp/127.0.0.1:{free_port()}"
+
+
+@pytest.fixture
+def zenoh_cfg(hub_endpoint: str) -> ZenohConfig:
+    """Peer mode, multicast scouting off, everyone meeting at this test's hub."""
+    return ZenohConfig(hub=hub_endpoint, listen=["tcp/127.0.0.1:0"], multicast_scouting=False)
+
+
+def python_env() -> dict[str, str]:
+    """Environment for child Python processes (unbuffered, Zenoh quiet)."""
+    return {**os.environ, "PYTHONUNBUFFERED": "1", "RUST_LOG": "error"}
+
+
+@pytest.fixture
+def spawn(tmp_path: Path) -> Iterator[Callable[..., subprocess.Popen[str]]]:
+    """Start child processes whose output goes to files; kill leftovers at the end."""
+    procs: list[subprocess.Popen[str]] = []
+
+    def start(*args: str, name: str = "proc") -> subprocess.Popen[str]:
+        out = (tmp_path / f"{name}-{len(procs)}.log").open("w")
+        proc = subprocess.Popen(
+            [sys.executable, *args],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=python_env(),
+            cwd=ROOT,
+        )
+        proc.log_path = Path(out.name)  # type: ignore[attr-defined]
+        procs.append(proc)
+        return proc
+
+    yield start
+    for proc in procs:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def wait_for(predicate: Callable[[], bool], timeout_s: float = 15.0, what: str = "") -> None:
+    """Poll ``predicate`` until it holds; fail the test after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.05)
+    pytest.fail(f"timed out after {timeout_s} s waiting for {what or predicate}")
