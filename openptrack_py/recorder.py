@@ -57,8 +57,6 @@ class Recorder:
     keyexprs : list of str
         Full key expressions to record, each below a known topic
         (``opt/<site>/detections/**``, ``opt/<site>/tracks``...).
-    flush_every : int
-        Flush the file after this many lines.
 
     Raises
     ------
@@ -66,11 +64,8 @@ class Recorder:
         If a key expression names no known topic.
     """
 
-    def __init__(
-        self, node: Node, path: Path, keyexprs: list[str], flush_every: int = 100
-    ) -> None:
+    def __init__(self, node: Node, path: Path, keyexprs: list[str]) -> None:
         self.node = node
-        self.flush_every = flush_every
         self.lines = 0
         validators = [(expr, _validated_by(expr)) for expr in keyexprs]
         self.path = unique_path(Path(path))
@@ -87,8 +82,8 @@ class Recorder:
             out.write(b',"msg":' + item.message + b"}\n")
             self.lines += 1
             self.node.counters.inc("out")
-            if self.lines % self.flush_every == 0:
-                out.flush()
+        if items:
+            out.flush()  # what was received is on disk before the next wait
 
     def run(self) -> None:
         """Write until the node stops, then write what is still queued."""

@@ -1,0 +1,39 @@
+# make demo   run the demo network on simulated sensors (DEMO_SECONDS=N stops after N s)
+# make test   run the test suite
+# make bench  print benchmark figures as JSON
+# Each target creates and fills .venv first when needed.
+
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.bootstrapped
+EXTRAS ?= dev,osc,web
+DEMO_SECONDS ?=
+
+.PHONY: demo test bench lint format venv clean
+
+$(STAMP): pyproject.toml scripts/bootstrap
+	PYTHON=$(PYTHON) ./scripts/bootstrap $(EXTRAS)
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/openptrack launch demo $(if $(DEMO_SECONDS),--duration $(DEMO_SECONDS))
+
+test: $(STAMP)
+	$(PY) -m pytest
+
+bench: $(STAMP)
+	$(PY) benchmarks/run_all.py
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+format: $(STAMP)
+	$(VENV)/bin/ruff format .
+	$(VENV)/bin/ruff check --fix .
+
+clean:
+	rm -rf $(VENV) build dist *.egg-info .pytest_cache .ruff_cache .hypothesis

@@ -1,0 +1,121 @@
+"""Oracle tests of the evaluation harness: scenario -> hypotheses -> CLEAR MOT / IDF1."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+
+from openptrack_py.eval.runner import Hypotheses, TrackerFeed, TruthFeed, evaluate
+from openptrack_py.messages import DetectionBatch, GroundTruthFrame, Track, TrackBatch
+from openptrack_py.sim import DEFAULT_START_TIME, build_scenario
+from openptrack_py.sim.simulator import SensorFrame
+
+
+def _truth(**faults: object) -> TruthFeed:
+    return TruthFeed(start_time=DEFAULT_START_TIME, **faults)  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def crowd():
+    return build_scenario("crowd", seed=4, duration_s=20.0)
+
+
+def test_ground_truth_scores_perfectly(crowd) -> None:
+    m = evaluate(crowd, _truth()).metrics
+    assert (m.mota, m.idf1, m.motp) == (1.0, 1.0, 0.0)
+    assert m.id_switches == m.fp == m.fn == m.fragmentations == 0
+    assert m.frames == 601 and m.gt_tracks == 7
+
+
+def test_one_relabelled_person_is_exactly_one_id_switch(crowd) -> None:
+    m = evaluate(crowd, _truth(relabel=(3, 10.0))).metrics
+    assert m.id_switches == 1 and m.fp == 0 and m.fn == 0
+    assert m.mota == pytest.approx(1 - 1 / m.gt_objects)
+    # person 3 has its first id in frames 0..299 and the new one in 300..600: IDF1 keeps the
+    # longer run (301 frames) and loses the 300 others, once as IDFP and once as IDFN
+    assert m.idf1 == pytest.approx(1 - 300 / m.gt_objects, abs=1e-12)
+
+
+def test_two_people_exchanging_ids_are_two_switches(crowd) -> None:
+    m = evaluate(crowd, _truth(swap=(1, 2, 5.0))).metrics
+    assert m.id_switches == 2 and m.fp == m.fn == 0
+
+
+def test_frames_without_output_count_every_object_as_missed(crowd) -> None:
+    missing: list[int] = []
+
+    def on_frame(t: float, truth: GroundTruthFrame, hyp: Hypotheses | None) -> None:
+        if hyp is None:
+            missing.append(sum(p.covered for p in truth.people))
+
+    m = evaluate(crowd, _truth(drop=(5.0, 6.0)), on_frame=on_frame).metrics
+    assert len(missing) == 30  # one second at 30 Hz
+    assert m.fn == sum(missing) and m.fp == 0 and m.id_switches == 0
+    assert m.mota == pytest.approx(1 - sum(missing) / m.gt_objects)
+
+
+def test_people_out_of_every_view_are_dont_care() -> None:
+    # In "distance" people walk beyond the sensor's 10 m range: not covered. The oracle
+    # still reports them; that must cost nothing (no FP), and they are not objects (no FN).
+    scenario = build_scenario("distance", seed=0, duration_s=40.0)
+    uncovered = []
+
+    def on_frame(t: float, truth: GroundTruthFrame, hyp: Hypotheses | None) -> None:
+        uncovered.append(sum(not p.covered for p in truth.people))
+
+    m = evaluate(scenario, _truth(), on_frame=on_frame).metrics
+    assert sum(uncovered) > 0, "scenario should take someone out of coverage"
+    assert m.fp == 0 and m.fn == 0 and m.mota == 1.0
+    assert m.gt_objects == 2 * len(uncovered) - sum(uncovered)
+
+
+def test_warmup_frames_are_not_scored(crowd) -> None:
+    m = evaluate(crowd, _truth(drop=(0.0, 2.0)), warmup_s=2.0).metrics
+    assert m.fn == 0 and m.frames == 601 - 60
+
+
+@dataclass
+class FixedTracker:
+    """Reports one track at a fixed place moving at a fixed velocity."""
+
+    x: float
+    vx: float
+    steps: list[float] = field(default_factory=list)
+
+    def step(self, batch: DetectionBatch) -> TrackBatch:
+        self.steps.append(batch.stamp)
+        track = Track(
+            id=1, x=self.x, y=0.0, z=0.9, height=1.7, vx=self.vx, vy=0.0, age=1.0, confidence=1.0
+        )
+        return TrackBatch(stamp=batch.stamp, seq=len(self.steps), tracks=(track,), max_id=1)
+
+
+def _frame(capture: float, offset: float = 0.0) -> SensorFrame:
+    batch = DetectionBatch("k1", 0, capture + offset, "world", ())
+    return SensorFrame(capture + 0.03, capture, batch, ())
+
+
+def test_tracker_output_is_extrapolated_to_the_truth_time() -> None:
+    feed = TrackerFeed(FixedTracker(x=1.0, vx=2.0), stale_after_s=1.0)
+    assert feed.hypotheses_at(100.0) is None  # nothing yet
+    feed.on_sensor_frame(_frame(100.0))
+    hyp = feed.hypotheses_at(100.25)
+    assert hyp is not None
+    np.testing.assert_allclose(hyp.xy, [[1.5, 0.0]])
+    assert feed.hypotheses_at(101.5) is None  # older than stale_after_s: a missing frame
+
+
+def test_sensor_clock_offsets_do_not_shift_the_evaluation() -> None:
+    # A sensor 0.15 s ahead writes stamps 0.15 s late; the feed maps them back to true time.
+    feed = TrackerFeed(FixedTracker(x=0.0, vx=1.0))
+    feed.on_sensor_frame(_frame(200.0, offset=0.15))
+    hyp = feed.hypotheses_at(200.5)
+    assert hyp is not None
+    np.testing.assert_allclose(hyp.xy, [[0.5, 0.0]])
+
+
+def test_evaluate_needs_a_finite_scenario() -> None:
+    with pytest.raises(ValueError, match="finite duration"):
+        evaluate(build_scenario("crowd", duration_s=None), _truth())

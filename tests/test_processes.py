@@ -1,0 +1,88 @@
+"""Real processes talking over Zenoh on loopback (free port, multicast scouting off)."""
+
+from __future__ import annotations
+
+import re
+import signal
+import subprocess
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from openptrack_py.messages import decode_detection_batch
+from openptrack_py.recorder import read_recording
+from tests.conftest import free_port, wait_for
+
+pytestmark = pytest.mark.zenoh
+
+
+def _start_recorder(
+    spawn: Callable[..., subprocess.Popen[str]], out: Path, listen: str
+) -> subprocess.Popen[str]:
+    return spawn(
+        "-m", "openptrack_py.nodes.record",
+        "-l", listen,
+        "-e", listen,  # no hub: the publisher connects straight to this listener
+        "--no-multicast-scouting",
+        "-o", str(out),
+        "-k", "opt/default/detections/**",
+        name="recorder",
+    )  # fmt: skip
+
+
+def _stop(proc: subprocess.Popen[str]) -> str:
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=15) == 0
+    return Path(proc.log_path).read_text()  # type: ignore[attr-defined]
+
+
+def _final_counters(log: str) -> dict[str, int]:
+    line = [x for x in log.splitlines() if " stopped " in x][-1]
+    return {k: int(v) for k, v in re.findall(r"(\w+)=(\d+)", line)}
+
+
+def test_thousand_batches_arrive_complete_and_in_order(
+    spawn: Callable[..., subprocess.Popen[str]], tmp_path: Path
+) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    out = tmp_path / "received.jsonl"
+    recorder = _start_recorder(spawn, out, endpoint)
+    publisher = spawn("-m", "tests.procs.publisher", "--connect", endpoint, "--count", "1000")
+    assert publisher.wait(timeout=60) == 0, Path(publisher.log_path).read_text()  # type: ignore[attr-defined]
+    wait_for(lambda: out.exists() and len(out.read_bytes().splitlines()) >= 1000, 30, "1000 lines")
+    log = _stop(recorder)
+    lines = read_recording(out)
+    seqs = [line["msg"]["seq"] for line in lines]
+    assert seqs == list(range(1000)), "lost or reordered batches"
+    assert all(line["key"] == "opt/default/detections/k1" for line in lines)
+    counters = _final_counters(log)
+    assert counters["in"] == 1000 and counters["malformed"] == 0 and counters["dropped"] == 0
+
+
+def test_malformed_bytes_are_counted_dropped_and_survived(
+    spawn: Callable[..., subprocess.Popen[str]], tmp_path: Path
+) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    out = tmp_path / "received.jsonl"
+    recorder = _start_recorder(spawn, out, endpoint)
+    # truncated JSON, a string where an int belongs, NaN, a 10 MB array; then 20 good ones
+    publisher = spawn(
+        "-m", "tests.procs.publisher", "--connect", endpoint, "--count", "20", "--malformed"
+    )  # fmt: skip
+    assert publisher.wait(timeout=60) == 0
+    wait_for(lambda: out.exists() and len(out.read_bytes().splitlines()) >= 20, 30, "20 lines")
+    assert recorder.poll() is None, "the recorder died of bad input"
+    log = _stop(recorder)
+    lines = read_recording(out)
+    assert [line["msg"]["seq"] for line in lines] == list(range(20))
+    for line in lines:  # only valid messages were written
+        decode_detection_batch(
+            __import__("orjson").dumps(line["msg"])  # round-trip through the strict decoder
+        )
+    counters = _final_counters(log)
+    assert counters["malformed"] == 4 and counters["in"] == 20
+    # rate-limited logging: one warning line for the burst, naming the first problem
+    warnings = [x for x in log.splitlines() if "dropped malformed message" in x]
+    assert len(warnings) == 1, warnings
+    assert "error=" in warnings[0] and "opt/default/detections/k1" in warnings[0]
