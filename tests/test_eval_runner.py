@@ -11,6 +11,7 @@ from openptrack_py.eval.runner import Hypotheses, TrackerFeed, TruthFeed, evalua
 from openptrack_py.messages import DetectionBatch, GroundTruthFrame, Track, TrackBatch
 from openptrack_py.sim import DEFAULT_START_TIME, build_scenario
 from openptrack_py.sim.simulator import SensorFrame
+from openptrack_py.tracking import TrackingPipeline
 
 
 def _truth(**faults: object) -> TruthFeed:
@@ -83,6 +84,7 @@ class FixedTracker:
     x: float
     vx: float
     steps: list[float] = field(default_factory=list)
+    time: float | None = None
 
     def step(self, batch: DetectionBatch) -> TrackBatch:
         self.steps.append(batch.stamp)
@@ -97,8 +99,13 @@ def _frame(capture: float, offset: float = 0.0) -> SensorFrame:
     return SensorFrame(capture + 0.03, capture, batch, ())
 
 
+def _feed(tracker: FixedTracker, stale_after_s: float = 1.0) -> TrackerFeed:
+    pipeline = TrackingPipeline(tracker, window_s=0.0, clock_correction="none")  # type: ignore[arg-type]
+    return TrackerFeed(pipeline, stale_after_s=stale_after_s)
+
+
 def test_tracker_output_is_extrapolated_to_the_truth_time() -> None:
-    feed = TrackerFeed(FixedTracker(x=1.0, vx=2.0), stale_after_s=1.0)
+    feed = _feed(FixedTracker(x=1.0, vx=2.0), stale_after_s=1.0)
     assert feed.hypotheses_at(100.0) is None  # nothing yet
     feed.on_sensor_frame(_frame(100.0))
     hyp = feed.hypotheses_at(100.25)
@@ -109,7 +116,7 @@ def test_tracker_output_is_extrapolated_to_the_truth_time() -> None:
 
 def test_sensor_clock_offsets_do_not_shift_the_evaluation() -> None:
     # A sensor 0.15 s ahead writes stamps 0.15 s late; the feed maps them back to true time.
-    feed = TrackerFeed(FixedTracker(x=0.0, vx=1.0))
+    feed = _feed(FixedTracker(x=0.0, vx=1.0))
     feed.on_sensor_frame(_frame(200.0, offset=0.15))
     hyp = feed.hypotheses_at(200.5)
     assert hyp is not None

@@ -63,46 +63,63 @@ class HypothesisFeed(Protocol):
         """Tracks at true time ``t``; ``None`` when there is no usable output."""
 
 
-class StepTracker(Protocol):
-    """A tracker that takes one batch and returns its state after it."""
+class Pipeline(Protocol):
+    """Something that takes batches as they arrive and steps a tracker (see ``fusion``)."""
 
-    def step(self, batch: DetectionBatch) -> TrackBatch:
-        """Apply ``batch``; return the published tracks."""
+    def push(
+        self, batch: DetectionBatch, arrival: float
+    ) -> list[tuple[DetectionBatch, TrackBatch]]:
+        """Take a batch at its arrival time; return the steps it allowed."""
+
+    def poll(self, now: float) -> list[tuple[DetectionBatch, TrackBatch]]:
+        """Steps whose wait ended by ``now``."""
 
 
 @dataclass
 class TrackerFeed:
-    """Feeds sensor batches to a tracker and reports its extrapolated output.
+    """Feeds sensor batches to a tracking pipeline and reports its extrapolated output.
+
+    Each output refers to the capture time of the batch that produced it; the feed maps
+    it to true time through that batch's true capture time, so sensor clock offsets
+    (and their correction) do not bias the scoring.
 
     Parameters
     ----------
-    tracker : StepTracker
-        The tracker under test.
+    pipeline : Pipeline
+        Reorder buffer plus tracker.
     stale_after_s : float
         Output older than this counts as no output at all.
     """
 
-    tracker: StepTracker
+    pipeline: Pipeline
     stale_after_s: float = 1.0
     steps: int = 0
     step_seconds: float = 0.0
     _latest: TrackBatch | None = None
-    _latest_true_time: float = 0.0
-    _offsets: dict[str, float] = field(default_factory=dict)
+    _latest_true_time: float = -float("inf")
+    _captures: dict[tuple[str, int], float] = field(default_factory=dict)
+
+    def _take(self, results: list[tuple[DetectionBatch, TrackBatch]]) -> None:
+        for batch, out in results:
+            self.steps += 1
+            true_time = self._captures.pop((batch.sensor_id, batch.seq), None)
+            if true_time is not None and true_time >= self._latest_true_time:
+                self._latest, self._latest_true_time = out, true_time
 
     def on_sensor_frame(self, frame: SensorFrame) -> None:
-        """Step the tracker with the batch (timing the step)."""
+        """Push the batch at its arrival time (timing the steps it triggers)."""
+        self._captures[(frame.batch.sensor_id, frame.batch.seq)] = frame.capture_time
         start = time.perf_counter()
-        out = self.tracker.step(frame.batch)
+        results = self.pipeline.push(frame.batch, frame.time)
         self.step_seconds += time.perf_counter() - start
-        self.steps += 1
-        # The output's stamp is on the sensor's clock; keep the true time it stands for.
-        offset = frame.batch.stamp - frame.capture_time
-        self._latest = out
-        self._latest_true_time = out.stamp - offset
+        self._take(results)
 
     def on_truth_frame(self, frame: TruthFrame) -> None:
-        """Trackers never see the truth."""
+        """Use only the clock: release batches whose wait is over."""
+        start = time.perf_counter()
+        results = self.pipeline.poll(frame.time)
+        self.step_seconds += time.perf_counter() - start
+        self._take(results)
 
     def hypotheses_at(self, t: float) -> Hypotheses | None:
         """Latest output extrapolated to ``t`` along each track's velocity."""

@@ -28,7 +28,7 @@ import numpy as np
 
 from openptrack_py.config import Pose, SensorConfig
 from openptrack_py.errors import ConfigError
-from openptrack_py.sim.sensors import SENSOR_TYPES, SensorSpec
+from openptrack_py.sim.sensors import SENSOR_TYPES, SensorModel, SensorSpec
 from openptrack_py.sim.world import Director, Obstacle, Room, World, random_person
 
 
@@ -387,13 +387,44 @@ def _sensor(
     )
 
 
-def _ring_sampler(room: Room, centre: np.ndarray, lo: float, hi: float) -> Callable:
+def _coverage(room: Room, sensors: Sequence[SensorConfig]) -> Callable[[np.ndarray], bool]:
+    """Whether an adult standing at a point, and 0.4 m around it, is in some sensor's view.
+
+    Scenarios use their own designed sensor layout for this, so people's paths do not
+    depend on which sensors a network file chooses to simulate.
+    """
+    models = [
+        SensorModel(SensorSpec.from_config(cfg), room, np.random.default_rng(0)) for cfg in sensors
+    ]
+    ring = 0.4 * np.array([(0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)], dtype=float)
+
+    def covered(xy: np.ndarray) -> bool:
+        points = xy[None, :] + ring
+        heights = np.full(len(points), 1.75)
+        seen = np.zeros(len(points), dtype=bool)
+        for model in models:
+            seen |= model.covers(points, heights)
+        return bool(seen.all())
+
+    return covered
+
+
+def _goal_sampler(
+    room: Room,
+    sensors: Sequence[SensorConfig],
+    centre: np.ndarray | None = None,
+    ring: tuple[float, float] = (0.0, np.inf),
+) -> Callable[[np.random.Generator], np.ndarray]:
+    """Random free, covered points (optionally at a distance in ``ring`` from ``centre``)."""
+    covered = _coverage(room, sensors)
+
     def sample(rng: np.random.Generator) -> np.ndarray:
         for _ in range(2000):
             p = room.random_free_point(rng, 0.5)
-            if lo <= np.linalg.norm(p - centre) <= hi:
+            near = centre is None or ring[0] <= np.linalg.norm(p - centre) <= ring[1]
+            if near and covered(p):
                 return p
-        return room.random_free_point(rng, 0.5)
+        raise RuntimeError("scenario: no covered free floor to walk to")
 
     return sample
 
@@ -405,7 +436,7 @@ def _crowd(seed: int, rng: np.random.Generator, people: int = 7) -> tuple:
         _sensor("k2_b", 9.8, 0.2, 2.6, 135.0, 22.0),
         _sensor("k2_c", 5.0, 9.8, 2.6, -90.0, 22.0),
     ]
-    sampler = _ring_sampler(room, np.array([0.2, 0.2]), 1.0, 9.0)
+    sampler = _goal_sampler(room, sensors, np.array([0.2, 0.2]), (1.0, 9.0))
 
     def director(r: np.random.Generator) -> Director:
         return WaypointDirector(people, sampler, (0.0, 2.0), r)
@@ -495,8 +526,7 @@ def _stress(seed: int, rng: np.random.Generator, people: int = 120) -> tuple:
         _sensor("s9", 29.7, 10.0, 3.0, 180.0, 18.0),
     ]
 
-    def sample(r: np.random.Generator) -> np.ndarray:
-        return room.random_free_point(r, 0.5)
+    sample = _goal_sampler(room, sensors)
 
     def director(r: np.random.Generator) -> Director:
         return WaypointDirector(people, sample, (0.0, 3.0), r)

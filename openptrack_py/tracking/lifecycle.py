@@ -1,0 +1,63 @@
+"""Which detections start tracks, when tracks are confirmed, and when they are deleted."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ConfidenceInitiator:
+    """Start tentative tracks from confident detections no track can explain.
+
+    A detection starts a track when it was not associated, its confidence is at least
+    ``min_confidence``, and it lies outside every existing track's gate (a second blob
+    of someone already tracked, or the same person seen by an overlapping sensor, never
+    starts a second track). A tentative track is confirmed after
+    ``detections_to_validate`` associated detections.
+
+    Parameters
+    ----------
+    min_confidence : float
+        Least confidence of a detection that starts a track.
+    detections_to_validate : int
+        Associated detections (the first included) needed for confirmation.
+    """
+
+    min_confidence: float
+    detections_to_validate: int
+
+    def initiate(
+        self, confidence: np.ndarray, assigned: np.ndarray, in_any_gate: np.ndarray
+    ) -> np.ndarray:
+        """Indices of the detections that start new tracks."""
+        return np.flatnonzero(~assigned & ~in_any_gate & (confidence >= self.min_confidence))
+
+    def confirm(self, hits: np.ndarray, confirmed: np.ndarray) -> np.ndarray:
+        """Confirmation flags after this step."""
+        return confirmed | (hits >= self.detections_to_validate)
+
+
+@dataclass(frozen=True)
+class TimeDeleter:
+    """Delete tracks that are stale.
+
+    Parameters
+    ----------
+    sec_before_fake : float
+        A tentative track still unconfirmed this long after its first detection goes.
+    sec_before_old : float
+        A confirmed track unseen this long goes.
+    """
+
+    sec_before_fake: float
+    sec_before_old: float
+
+    def delete(
+        self, now: float, first_seen: np.ndarray, last_seen: np.ndarray, confirmed: np.ndarray
+    ) -> np.ndarray:
+        """Mask of tracks to delete at time ``now``."""
+        fake = ~confirmed & (now - first_seen >= self.sec_before_fake)
+        old = confirmed & (now - last_seen >= self.sec_before_old)
+        return fake | old

@@ -1,0 +1,63 @@
+"""Constant-velocity motion on the floor."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ConstantVelocity:
+    """State ``[x, y, vx, vy]`` moving at constant velocity, driven by white acceleration.
+
+    The process noise is the exact discretisation of continuous white acceleration with
+    spectral density ``q`` over the real, possibly irregular, step ``dt``::
+
+        Q = q * [[dt^3/3 I, dt^2/2 I],
+                 [dt^2/2 I, dt     I]]
+
+    Parameters
+    ----------
+    acceleration_variance : float
+        Spectral density ``q``, m^2/s^3.
+    """
+
+    acceleration_variance: float
+
+    def __post_init__(self) -> None:
+        if not self.acceleration_variance > 0:
+            raise ValueError(
+                "ConstantVelocity: acceleration_variance must be > 0, "
+                f"got {self.acceleration_variance}"
+            )
+
+    ndim = 4
+
+    @staticmethod
+    def fx(sigmas: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        """Move sigma points ``(N, k, 4)`` forward by ``dt (N,)``."""
+        out = sigmas.copy()
+        out[..., 0:2] += dt[:, None, None] * sigmas[..., 2:4]
+        return out
+
+    @staticmethod
+    def transition(dt: np.ndarray) -> np.ndarray:
+        """Transition matrices ``(N, 4, 4)``."""
+        dt = np.atleast_1d(np.asarray(dt, dtype=float))
+        f = np.broadcast_to(np.eye(4), (len(dt), 4, 4)).copy()
+        f[:, 0, 2] = dt
+        f[:, 1, 3] = dt
+        return f
+
+    def noise(self, dt: np.ndarray) -> np.ndarray:
+        """Process noise ``(N, 4, 4)`` for steps ``dt``."""
+        dt = np.abs(np.atleast_1d(np.asarray(dt, dtype=float)))
+        q = self.acceleration_variance
+        out = np.zeros((len(dt), 4, 4))
+        a, b, c = q * dt**3 / 3.0, q * dt**2 / 2.0, q * dt
+        for i in (0, 1):
+            out[:, i, i] = a
+            out[:, i, i + 2] = out[:, i + 2, i] = b
+            out[:, i + 2, i + 2] = c
+        return out
