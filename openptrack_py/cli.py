@@ -6,6 +6,7 @@ Subcommands::
     openptrack node NAME [...]                               run one node in the foreground
     openptrack status [-c NETWORK]                           live nodes and their rates
     openptrack echo KEYEXPR [-c NETWORK]                     print messages as JSON lines
+    openptrack config NODE [KEY=VALUE ...]                   change a running node's parameters
     openptrack eval --scenario NAME --seed N                 score a tracker on a scenario
     openptrack scenarios                                     list the simulated scenarios
     openptrack show-config NETWORK                           the validated network file
@@ -205,11 +206,85 @@ def _cmd_echo(args: argparse.Namespace) -> int:
     return 0
 
 
+# ------------------------------------------------------------------------ config
+
+
+def _cmd_config(args: argparse.Namespace) -> int:
+    import uuid
+
+    import yaml
+
+    from openptrack_py.config import parse_override_value
+    from openptrack_py.messages.codec import decode_config_ack, encode_config_update
+    from openptrack_py.messages.config_update import ConfigUpdate
+    from openptrack_py.runtime.node import Inbox
+    from openptrack_py.transport import SiteKeys, wait_for_subscribers
+
+    changes = {}
+    for item in args.assignments:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            print(f"openptrack config: {item!r}: expected key=value", file=sys.stderr)
+            return EXIT_CONFIG
+        changes[key.removeprefix(f"{args.node}.")] = parse_override_value(text)
+    cfg = network_from_args(args)
+    keys = SiteKeys(cfg.site)
+    request = ConfigUpdate(id=uuid.uuid4().hex[:16], set=changes)
+    acks: Inbox[bytes] = Inbox(100)
+    with bus_from_args(cfg, args) as bus:
+        sub = bus.subscribe(keys.config_ack(args.node), lambda s: acks.push(s.payload))
+        pub = bus.publisher(keys.config(args.node))
+        if not wait_for_subscribers(pub, args.timeout):
+            print(
+                f"openptrack config: no node {args.node!r} listens on {keys.config(args.node)}",
+                file=sys.stderr,
+            )
+            return 1
+        pub.put(encode_config_update(request))
+        deadline = time.monotonic() + args.timeout
+        ack = None
+        while ack is None and time.monotonic() < deadline:
+            payload = acks.get(timeout=0.1)
+            if payload is None:
+                continue
+            try:
+                candidate = decode_config_ack(payload)
+            except WireFormatError:
+                continue
+            if candidate.id == request.id:
+                ack = candidate
+        sub.close()
+        pub.close()
+    if ack is None:
+        print(
+            f"openptrack config: {args.node!r} did not answer in {args.timeout:g} s",
+            file=sys.stderr,
+        )
+        return 1
+    if args.format == "json":
+        print(
+            orjson.dumps(
+                {"accepted": ack.accepted, "error": ack.error, "config": ack.config}
+            ).decode()
+        )
+    elif not ack.accepted:
+        pass
+    elif changes:
+        applied = " ".join(f"{k}={v}" for k, v in changes.items())
+        print(f"{args.node}: applied {applied}")
+    else:
+        sys.stdout.write(yaml.safe_dump(ack.config, sort_keys=False))
+    if not ack.accepted:
+        print(f"openptrack config: {args.node} refused the update: {ack.error}", file=sys.stderr)
+        return EXIT_CONFIG
+    return 0
+
+
 # -------------------------------------------------------------------------- eval
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from openptrack_py.eval.runner import format_table
+    from openptrack_py.eval.runner import format_markdown, format_table
     from openptrack_py.eval.trackers import DEFAULT_TRACKER, TRACKERS, run_eval
 
     args.tracker = args.tracker or DEFAULT_TRACKER
@@ -219,7 +294,11 @@ def _cmd_eval(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_CONFIG
+    from openptrack_py.sim.scenarios import SCENARIO_NAMES
+
     scenarios = args.scenario or ["crowd"]
+    if "all" in scenarios:
+        scenarios = list(SCENARIO_NAMES)
     seeds = args.seed or [0]
     rows = []
     for name in scenarios:
@@ -234,12 +313,14 @@ def _cmd_eval(args: argparse.Namespace) -> int:
                 max_distance_m=args.max_distance,
             )
             rows.append({"tracker": args.tracker, **result.to_dict()})
+    columns = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "fp", "fn"]
+    columns += ["frames", "gt_objects", "realtime_factor"]
     if args.format == "json":
         payload = rows[0] if len(rows) == 1 else rows
         print(json.dumps(payload, indent=None if len(rows) == 1 else 1))
+    elif args.format == "markdown":
+        print(format_markdown(rows, columns))
     else:
-        columns = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "fp", "fn"]
-        columns += ["frames", "gt_objects", "realtime_factor"]
         print(format_table(rows, columns))
     return 0
 
@@ -328,19 +409,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_echo)
 
     p = sub.add_parser(
+        "config",
+        help="change a running node's parameters (or show them)",
+        description="Send a live parameter update to a running node, e.g. "
+        "'openptrack config tracker gate_probability=0.99'. The node validates it, applies "
+        "it between two steps and answers; without assignments the current parameters "
+        "are printed. Exit status: 0 applied, 2 refused, 1 no answer.",
+    )
+    p.add_argument("node", help="node name, e.g. tracker")
+    p.add_argument("assignments", nargs="*", metavar="KEY=VALUE", help="parameters to change")
+    add_common_arguments(p)
+    p.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for the node")
+    p.add_argument("--format", choices=("text", "json"), default="text")
+    p.set_defaults(func=_cmd_config)
+
+    p = sub.add_parser(
         "eval",
         help="run a simulated scenario faster than real time through a tracker and score it",
         description="Run scenarios faster than real time through a tracker and print CLEAR "
         "MOT and identity metrics.",
     )
-    p.add_argument("--scenario", action="append", help="scenario name (repeatable)")
+    p.add_argument("--scenario", action="append", help="scenario name, or 'all' (repeatable)")
     p.add_argument("--seed", type=int, action="append", help="seed (repeatable)")
     p.add_argument("--duration", type=float, help="simulated seconds (scenario default)")
     p.add_argument("--tracker", default=None, help="tracker to evaluate")
     p.add_argument("--tracker-config", type=Path, help="YAML file of tracker parameters")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--max-distance", type=float, default=0.5, help="match distance, metres")
-    p.add_argument("--format", choices=("json", "table"), default="table")
+    p.add_argument("--format", choices=("json", "table", "markdown"), default="table")
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("scenarios", help="list the simulated scenarios")
@@ -360,7 +456,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``openptrack`` command."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.command in ("status", "echo"):
+    if args.command in ("status", "echo", "config"):
         configure_logging("openptrack", args.log_level, args.log_format)
     try:
         return int(args.func(args))

@@ -431,7 +431,7 @@ class NetworkConfig(StrictModel):
 # --------------------------------------------------------------------------- loading
 
 
-def _parse_value(text: str) -> Any:
+def parse_override_value(text: str) -> Any:
     """Parse an override's value as a YAML scalar or flow collection."""
     try:
         return yaml.safe_load(text) if text.strip() else ""
@@ -461,7 +461,7 @@ def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> dict[str,
             last = i == len(chunks) - 1
             if isinstance(node, dict):
                 if last:
-                    node[chunk] = _parse_value(text)
+                    node[chunk] = parse_override_value(text)
                 else:
                     if node.get(chunk) is None:
                         node[chunk] = {}
@@ -469,7 +469,7 @@ def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> dict[str,
             elif isinstance(node, list):
                 index = _list_index(node, chunk, where)
                 if last:
-                    node[index] = _parse_value(text)
+                    node[index] = parse_override_value(text)
                 else:
                     node = node[index]
             else:

@@ -94,6 +94,8 @@ def plan_nodes(
     wants_sim = simulated or (cfg.sim is not None and cfg.sim.use_scenario_sensors)
     if cfg.sim is not None and host_matches(cfg.sim.host, host) and (wants_sim or not cfg.sensors):
         specs.append(NodeSpec("sim", "openptrack_py.nodes.sim", common))
+    if cfg.tracker is not None and host_matches(cfg.tracker.host, host):
+        specs.append(NodeSpec("tracker", "openptrack_py.nodes.tracker", common))
     if cfg.recorder is not None and host_matches(cfg.recorder.host, host):
         specs.append(NodeSpec("record", "openptrack_py.nodes.record", common))
     return specs

@@ -12,7 +12,7 @@ import pytest
 from openptrack_py.cli import available_nodes, build_parser
 from tests.conftest import ROOT, python_env
 
-SUBCOMMANDS = ["launch", "node", "status", "echo", "eval", "scenarios", "show-config"]
+SUBCOMMANDS = ["launch", "node", "status", "echo", "config", "eval", "scenarios", "show-config"]
 
 
 def _run(*args: str, cwd: Path = ROOT, env: dict[str, str] | None = None, timeout: float = 120):
@@ -43,7 +43,7 @@ def test_help_works_for_every_subcommand(command: list[str]) -> None:
     assert result.stdout.startswith("usage: openptrack")
 
 
-@pytest.mark.parametrize("node", ["sim", "record"])
+@pytest.mark.parametrize("node", ["sim", "record", "tracker"])
 def test_every_node_has_help(node: str) -> None:
     assert node in available_nodes()
     result = _cli("node", node, "--help")
@@ -56,7 +56,7 @@ def test_every_node_has_help(node: str) -> None:
 def test_unknown_node_lists_the_available_ones() -> None:
     result = _cli("node", "tracker-of-dreams")
     assert result.returncode == 2
-    assert "unknown node 'tracker-of-dreams' (available: record, sim" in result.stderr
+    assert "unknown node 'tracker-of-dreams' (available: record, sim, tracker)" in result.stderr
 
 
 def test_show_config_fills_defaults_and_applies_overrides() -> None:
@@ -152,7 +152,7 @@ def test_installed_wheel_has_the_command_every_node_and_the_presets(tmp_path: Pa
     assert all(line.startswith(str(target)) for line in where.stdout.splitlines())
     script = target / "bin" / "openptrack"
     assert script.exists()
-    for args in (["--help"], ["node", "sim", "--help"], ["node", "record", "--help"]):
+    for args in (["--help"], *(["node", n, "--help"] for n in ("sim", "record", "tracker"))):
         result = _run(str(script), *args, cwd=outside, env=env)
         assert result.returncode == 0, result.stderr
     shown = _run(str(script), "show-config", "demo", cwd=outside, env=env)

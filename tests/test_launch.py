@@ -27,7 +27,7 @@ DEMO = ROOT / "config" / "demo.yaml"
 def test_demo_runs_the_simulator_on_this_host() -> None:
     cfg = load_network(DEMO)
     specs = plan_nodes(cfg, this_host(), DEMO, ["--log-level", "debug"])
-    assert [s.name for s in specs] == ["sim"]
+    assert [s.name for s in specs] == ["sim", "tracker"]
     assert specs[0].command()[1:] == [
         "-m", "openptrack_py.nodes.sim", "-c", str(DEMO), "--log-level", "debug",
     ]  # fmt: skip

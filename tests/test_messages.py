@@ -21,6 +21,8 @@ from hypothesis import strategies as st
 from openptrack_py.errors import WireFormatError
 from openptrack_py.messages import (
     SCHEMA_VERSION,
+    ConfigAck,
+    ConfigUpdate,
     Detection,
     DetectionBatch,
     GroundTruthFrame,
@@ -31,11 +33,15 @@ from openptrack_py.messages import (
     TrackBatch,
     Visibility,
     codec,
+    decode_config_ack,
+    decode_config_update,
     decode_detection_batch,
     decode_ground_truth,
     decode_heartbeat,
     decode_node_stats,
     decode_track_batch,
+    encode_config_ack,
+    encode_config_update,
     encode_detection_batch,
     encode_ground_truth,
     encode_heartbeat,
@@ -62,6 +68,8 @@ CODECS: dict[str, tuple[Callable[[Any], bytes], Callable[[Any], Any], type]] = {
     "heartbeat": (encode_heartbeat, decode_heartbeat, Heartbeat),
     "ground_truth": (encode_ground_truth, decode_ground_truth, GroundTruthFrame),
     "stats": (encode_node_stats, decode_node_stats, NodeStats),
+    "config_update": (encode_config_update, decode_config_update, ConfigUpdate),
+    "config_ack": (encode_config_ack, decode_config_ack, ConfigAck),
 }
 DECODERS = [dec for _, dec, _ in CODECS.values()]
 DECODER_IDS = list(CODECS)
@@ -157,6 +165,17 @@ GOLDEN: dict[str, Any] = {
         timings_ms={"step": 1.25},
         pid=4242,
         host="master",
+    ),
+    "config_update": ConfigUpdate(
+        id="a1b2c3",
+        set={"gate_probability": 0.99, "publish_tentative": True, "late_policy": "drop"},
+    ),
+    "config_ack": ConfigAck(
+        id="a1b2c3",
+        node="tracker",
+        accepted=False,
+        error="gate_probability: must be <= 0.99999 (received 2)",
+        config={"gate_probability": 0.95, "late_policy": "oosm"},
     ),
 }
 GOLDEN_FILES = {kind: GOLDEN_DIR / f"{kind}_v{SCHEMA_VERSION}.json" for kind in GOLDEN}
@@ -905,12 +924,19 @@ def test_decoder_for_key(key: str, expected: Callable | None) -> None:
     assert decoder_for_key(key) is expected
 
 
+TOPIC_KIND = {"config": "config_update"}  # other topics carry the kind of the same name
+
+
 def test_every_topic_decodes_its_own_golden_message() -> None:
-    assert set(TOPICS) == set(GOLDEN)
+    assert {TOPIC_KIND.get(t, t) for t in TOPICS} | {"config_ack"} == set(GOLDEN)
     for topic in TOPICS:
+        kind = TOPIC_KIND.get(topic, topic)
         decode = decoder_for_key(f"opt/site/{topic}/x")
         assert decode is not None
-        assert decode(GOLDEN_FILES[topic].read_bytes()) == GOLDEN[topic]
+        assert decode(GOLDEN_FILES[kind].read_bytes()) == GOLDEN[kind]
+    ack = decoder_for_key("opt/site/config/tracker/ack")
+    assert ack is decode_config_ack
+    assert ack(GOLDEN_FILES["config_ack"].read_bytes()) == GOLDEN["config_ack"]
 
 
 # ------------------------------------------------------------------------ micro-fuzz

@@ -23,7 +23,7 @@ def _start_recorder(
     return spawn(
         "-m", "openptrack_py.nodes.record",
         "-l", listen,
-        "-e", listen,  # no hub: the publisher connects straight to this listener
+        "--set", "zenoh.hub=null",  # no hub: the publisher connects straight to this listener
         "--no-multicast-scouting",
         "-o", str(out),
         "-k", "opt/default/detections/**",

@@ -6,6 +6,8 @@ from collections.abc import Callable
 from typing import Any
 
 from openptrack_py.messages.codec import (
+    decode_config_ack,
+    decode_config_update,
     decode_detection_batch,
     decode_ground_truth,
     decode_heartbeat,
@@ -19,6 +21,7 @@ _BY_TOPIC: dict[str, Callable[[bytes], Any]] = {
     "ground_truth": decode_ground_truth,
     "heartbeat": decode_heartbeat,
     "stats": decode_node_stats,
+    "config": decode_config_update,
 }
 
 TOPICS = tuple(_BY_TOPIC)
@@ -32,4 +35,6 @@ def decoder_for_key(key: str) -> Callable[[bytes], Any] | None:
     chunks = key.split("/")
     if len(chunks) < 3 or chunks[0] != "opt":
         return None
+    if chunks[2] == "config" and chunks[-1] == "ack":
+        return decode_config_ack
     return _BY_TOPIC.get(chunks[2])

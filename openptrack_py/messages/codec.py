@@ -17,6 +17,7 @@ from typing import Any
 import orjson
 
 from openptrack_py.errors import WireFormatError
+from openptrack_py.messages.config_update import ConfigAck, ConfigUpdate
 from openptrack_py.messages.detection import Detection, DetectionBatch
 from openptrack_py.messages.ground_truth import GroundTruthFrame, PersonState
 from openptrack_py.messages.stats import NodeStats
@@ -564,4 +565,95 @@ def decode_node_stats(payload: bytes | bytearray | memoryview | str) -> NodeStat
         timings_ms={k: float(v) for k, v in _number_map(obj, "timings_ms", integer=False).items()},
         pid=_int(obj, "pid", ""),
         host=host,
+    )
+
+
+# ----------------------------------------------------------------- live configuration
+
+_UPDATE_KEYS = frozenset({"v", "kind", "id", "set"})
+_ACK_KEYS = frozenset({"v", "kind", "id", "node", "accepted", "error", "config"})
+_MAX_PARAMS = 64
+_SCALAR_TYPES = (bool, int, float, str, type(None))
+
+
+def _request_id(obj: dict) -> str:
+    value = obj.get("id")
+    if type(value) is not str or not 0 < len(value) <= MAX_NAME_LEN:
+        raise _fail("id", f"a string of 1-{MAX_NAME_LEN} characters", value)
+    return value
+
+
+def encode_config_update(update: ConfigUpdate) -> bytes:
+    """Encode a :class:`ConfigUpdate` to wire bytes."""
+    return _dumps(
+        {"v": SCHEMA_VERSION, "kind": "config_update", "id": update.id, "set": update.set}
+    )
+
+
+def decode_config_update(payload: bytes | bytearray | memoryview | str) -> ConfigUpdate:
+    """Decode and validate a :class:`ConfigUpdate`.
+
+    Only the shape is checked here (names and plain JSON values); whether the values are
+    allowed is for the node's own configuration model to say.
+
+    Raises
+    ------
+    WireFormatError
+        Naming the first invalid field.
+    """
+    obj = _parse(payload, "config_update")
+    _check_keys(obj, _UPDATE_KEYS, "")
+    changes = obj.get("set", {})
+    if type(changes) is not dict or len(changes) > _MAX_PARAMS:
+        raise _fail("set", f"an object of at most {_MAX_PARAMS} parameters", changes)
+    for name, value in changes.items():
+        if not _NAME_RE.fullmatch(name) or len(name) > MAX_NAME_LEN:
+            raise _fail(f"set.{name}", "a parameter name", name)
+        if isinstance(value, float) and not math.isfinite(value):
+            raise _fail(f"set.{name}", "a finite number", value)
+        if not isinstance(value, _SCALAR_TYPES):
+            raise _fail(f"set.{name}", "a number, string, boolean or null", value)
+    return ConfigUpdate(id=_request_id(obj), set=changes)
+
+
+def encode_config_ack(ack: ConfigAck) -> bytes:
+    """Encode a :class:`ConfigAck` to wire bytes."""
+    return _dumps(
+        {
+            "v": SCHEMA_VERSION,
+            "kind": "config_ack",
+            "id": ack.id,
+            "node": ack.node,
+            "accepted": ack.accepted,
+            "error": ack.error,
+            "config": ack.config,
+        }
+    )
+
+
+def decode_config_ack(payload: bytes | bytearray | memoryview | str) -> ConfigAck:
+    """Decode and validate a :class:`ConfigAck`.
+
+    Raises
+    ------
+    WireFormatError
+        Naming the first invalid field.
+    """
+    obj = _parse(payload, "config_ack")
+    _check_keys(obj, _ACK_KEYS, "")
+    accepted = obj.get("accepted")
+    if type(accepted) is not bool:
+        raise _fail("accepted", "true or false", accepted)
+    error = obj.get("error", "")
+    if type(error) is not str or len(error) > 4096:
+        raise _fail("error", "a string of at most 4096 characters", error)
+    config = obj.get("config", {})
+    if type(config) is not dict:
+        raise _fail("config", "an object", config)
+    return ConfigAck(
+        id=_request_id(obj),
+        node=_name(obj, "node", ""),
+        accepted=accepted,
+        error=error,
+        config=config,
     )

@@ -58,6 +58,10 @@ class SiteKeys:
         """Live parameter updates of one node."""
         return f"{self.prefix}/config/{node}"
 
+    def config_ack(self, node: str = "*") -> str:
+        """Answers of one node to live parameter updates."""
+        return f"{self.prefix}/config/{node}/ack"
+
     def alive(self, node: str = "*") -> str:
         """Liveliness token of one node."""
         return f"{self.prefix}/alive/{node}"

@@ -1,0 +1,204 @@
+"""The tracker node as a real process: tracks out, live reconfiguration, bad input."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from openptrack_py.config import ZenohConfig
+from openptrack_py.messages import (
+    Detection,
+    DetectionBatch,
+    TrackBatch,
+    decode_track_batch,
+    encode_detection_batch,
+)
+from openptrack_py.transport import wait_for_subscribers
+from openptrack_py.transport.zenoh_bus import ZenohBus
+from tests.conftest import ROOT, free_port, python_env, wait_for
+
+pytestmark = pytest.mark.zenoh
+
+
+class Client:
+    """This test's own Zenoh session: publishes detections, collects tracks."""
+
+    def __init__(self, endpoint: str) -> None:
+        cfg = ZenohConfig(hub=None, connect=[endpoint], listen=[], multicast_scouting=False)
+        self.bus = ZenohBus(cfg)
+        self.tracks: list[TrackBatch] = []
+        self.lock = threading.Lock()
+        self.bus.subscribe("opt/default/tracks", self._on_tracks)
+        self.pub = self.bus.publisher("opt/default/detections/k1")
+        self.raw = self.bus.publisher("opt/default/detections/k2")
+        self.seq = 0
+
+    def _on_tracks(self, sample: object) -> None:
+        with self.lock:
+            self.tracks.append(decode_track_batch(sample.payload))  # type: ignore[attr-defined]
+
+    def received(self) -> list[TrackBatch]:
+        with self.lock:
+            return list(self.tracks)
+
+    def send(self, *xy: tuple[float, float]) -> None:
+        dets = tuple(
+            Detection(x=x, y=y, z=0.9, height=1.7, confidence=0.9, distance=3.0) for x, y in xy
+        )
+        self.pub.put(
+            encode_detection_batch(DetectionBatch("k1", self.seq, time.time(), "world", dets))
+        )
+        self.seq += 1
+
+
+@pytest.fixture
+def tracker_node(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], Client, str, Path]]:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    net = tmp_path / "net.yaml"
+    net.write_text("site: default\nzenoh: {hub: null}\ntracker: {reorder_window_s: 0.0}\n")
+    log = tmp_path / "tracker.log"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "openptrack_py.nodes.tracker", "-c", str(net), "-l", endpoint,
+         "--no-multicast-scouting"],
+        stdout=log.open("w"), stderr=subprocess.STDOUT, text=True, env=python_env(), cwd=ROOT,
+    )  # fmt: skip
+    client = Client(endpoint)
+    try:
+        assert wait_for_subscribers(client.pub, timeout_s=30), log.read_text()
+        yield proc, client, endpoint, log
+    finally:
+        client.bus.close()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+
+
+def _config(endpoint: str, *assignments: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "openptrack_py.cli", "config", "tracker", *assignments,
+         "-e", endpoint, "--no-multicast-scouting", "--format", "json", "--timeout", "20"],
+        capture_output=True, text=True, timeout=60, env=python_env(), cwd=ROOT,
+    )  # fmt: skip
+
+
+def _sender(client: Client, stop: threading.Event, positions: Callable[[int], list]) -> None:
+    i = 0
+    while not stop.is_set():
+        client.send(*positions(i))
+        i += 1
+        time.sleep(1 / 30)
+
+
+def test_one_person_becomes_one_confirmed_track(tracker_node: tuple) -> None:
+    _proc, client, _endpoint, _log = tracker_node
+    for i in range(30):
+        client.send((1.0 + 0.02 * i, 2.0))
+        time.sleep(1 / 30)
+    wait_for(lambda: any(b.tracks for b in client.received()), 10, "a published track")
+    batches = client.received()
+    ids = {t.id for b in batches for t in b.tracks}
+    assert ids == {1}
+    last = batches[-1].tracks[0]
+    assert last.x == pytest.approx(1.58, abs=0.1) and last.y == pytest.approx(2.0, abs=0.05)
+    assert last.vx == pytest.approx(0.6, abs=0.25)  # 0.02 m per 1/30 s
+    # tracks are published once per step, in order
+    seqs = [b.seq for b in batches]
+    assert seqs == sorted(seqs)
+
+
+def test_live_change_applies_on_the_next_step_and_bad_ones_are_refused(
+    tracker_node: tuple,
+) -> None:
+    proc, client, endpoint, log = tracker_node
+    stop = threading.Event()
+    # every frame a detection far from all others: it starts a tentative track each time
+    sender = threading.Thread(
+        target=_sender,
+        args=(client, stop, lambda i: [(3.0 * (i % 7), 4.0 * (i % 5))]),
+        daemon=True,
+    )
+    sender.start()
+    try:
+        wait_for(lambda: any(b.alive_ids for b in client.received()), 10, "tentative tracks")
+        assert all(not b.tracks for b in client.received())  # tentative: not published
+
+        result = _config(endpoint, "publish_tentative=true")
+        assert result.returncode == 0, result.stderr
+        ack = json.loads(result.stdout)
+        assert ack["accepted"] and ack["config"]["publish_tentative"] is True
+        seen_at_ack = len(client.received())
+        wait_for(lambda: len(client.received()) > seen_at_ack + 5, 10, "more steps")
+        after = client.received()[seen_at_ack:]
+        assert all(
+            b.tracks and not any(t.confirmed for t in b.tracks) for b in after if b.alive_ids
+        )
+
+        bad = _config(endpoint, "gate_probability=1.5")
+        assert bad.returncode == 2
+        refusal = json.loads(bad.stdout)
+        assert not refusal["accepted"]
+        assert "gate_probability: must be <= 0.99999 (received 1.5)" in refusal["error"]
+        assert refusal["config"]["gate_probability"] == 0.95  # unchanged
+        unknown = _config(endpoint, "gate_probabilty=0.9")
+        assert unknown.returncode == 2
+        assert "did you mean 'gate_probability'?" in json.loads(unknown.stdout)["error"]
+        fixed = _config(endpoint, "host=elsewhere")
+        assert fixed.returncode == 2 and "cannot be changed while running" in fixed.stdout
+
+        count = len(client.received())
+        wait_for(lambda: len(client.received()) > count + 5, 10, "the node to keep stepping")
+        assert proc.poll() is None
+    finally:
+        stop.set()
+        sender.join()
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=15) == 0
+    text = log.read_text()
+    assert "config_applied=1" in text and "config_rejected=3" in text
+
+
+def test_malformed_input_and_a_dead_publisher_do_not_stop_the_tracker(
+    tracker_node: tuple, tmp_path: Path
+) -> None:
+    proc, client, endpoint, log = tracker_node
+    for payload in (b"", b"{", b'{"v":1,"kind":"detections"}', b"\x00" * 1000):
+        client.raw.put(payload)
+    # a second publisher process that dies abruptly mid-stream
+    script = (
+        "import time, sys\n"
+        "from tests.procs.publisher import batch\n"
+        "from openptrack_py.config import ZenohConfig\n"
+        "from openptrack_py.transport import wait_for_subscribers\n"
+        "from openptrack_py.transport.zenoh_bus import ZenohBus\n"
+        f"bus = ZenohBus(ZenohConfig(hub=None, connect=['{endpoint}'], listen=[]))\n"
+        "pub = bus.publisher('opt/default/detections/k9')\n"
+        "wait_for_subscribers(pub, 20)\n"
+        "for i in range(10**6):\n"
+        "    pub.put(batch(i)); time.sleep(0.01)\n"
+    )
+    victim = subprocess.Popen(
+        [sys.executable, "-c", script], env=python_env(), cwd=ROOT, stderr=subprocess.DEVNULL
+    )
+    time.sleep(2.0)
+    victim.kill()  # SIGKILL: no goodbye on the wire
+    victim.wait()
+    count = len(client.received())
+    for i in range(30):
+        client.send((2.0, 2.0 + 0.01 * i))
+        time.sleep(1 / 30)
+    wait_for(lambda: len(client.received()) >= count + 30, 10, "a step per batch after the death")
+    assert proc.poll() is None
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=15) == 0
+    assert "malformed=4" in log.read_text()
