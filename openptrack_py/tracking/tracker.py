@@ -54,6 +54,21 @@ class CostTerm(Protocol):
         """Extra cost of each track-detection pair."""
 
 
+def mahalanobis(resid: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Squared Mahalanobis distances and log-determinants of a stack of residuals.
+
+    ``resid (..., m)`` and ``cov (..., m, m)``; the 2-D case (floor position) uses the
+    closed-form inverse, which is exact and several times faster than a batched solve.
+    """
+    if resid.shape[-1] == 2:
+        a, b, c = cov[..., 0, 0], cov[..., 0, 1], cov[..., 1, 1]
+        det = a * c - b * b
+        r0, r1 = resid[..., 0], resid[..., 1]
+        return (c * r0 * r0 - 2.0 * b * r0 * r1 + a * r1 * r1) / det, np.log(det)
+    d2 = np.einsum("...i,...i->...", resid, np.linalg.solve(cov, resid[..., None])[..., 0])
+    return d2, np.linalg.slogdet(cov)[1]
+
+
 @dataclass(frozen=True)
 class DetectionArrays:
     """The detections of one batch that the tracker uses, as arrays.
@@ -268,35 +283,40 @@ class Tracker:
         if not self.publish_tentative:
             shown &= tb.confirmed
         rows = np.flatnonzero(shown)
-        fresh = np.clip(1.0 - unseen / self.deleter.sec_before_old, 0.0, 1.0)
-        tracks = []
-        x = tb.x.tolist()
-        for i in rows.tolist():
-            tracks.append(
-                Track(
-                    id=int(tb.ids[i]),
-                    x=x[i][0],
-                    y=x[i][1],
-                    z=float(tb.z[i]),
-                    height=float(tb.height[i]),
-                    vx=x[i][2],
-                    vy=x[i][3],
-                    age=float(max(t - tb.first_seen[i], 0.0)),
-                    confidence=float(np.clip(tb.confidence[i] * fresh[i], 0.0, 1.0)),
-                    visibility=(
-                        Visibility.VISIBLE
-                        if unseen[i] <= self.visibility_timeout_s
-                        else Visibility.NOT_VISIBLE
-                    ),
-                    confirmed=bool(tb.confirmed[i]),
-                )
+        fresh = np.clip(1.0 - unseen[rows] / self.deleter.sec_before_old, 0.0, 1.0)
+        columns = zip(
+            tb.ids[rows].tolist(),
+            tb.x[rows].tolist(),
+            tb.z[rows].tolist(),
+            tb.height[rows].tolist(),
+            np.maximum(t - tb.first_seen[rows], 0.0).tolist(),
+            np.clip(tb.confidence[rows] * fresh, 0.0, 1.0).tolist(),
+            (unseen[rows] <= self.visibility_timeout_s).tolist(),
+            tb.confirmed[rows].tolist(),
+            strict=True,
+        )
+        tracks = [
+            Track(
+                id=ident,
+                x=x[0],
+                y=x[1],
+                z=z,
+                height=height,
+                vx=x[2],
+                vy=x[3],
+                age=age,
+                confidence=conf,
+                visibility=Visibility.VISIBLE if visible else Visibility.NOT_VISIBLE,
+                confirmed=confirmed,
             )
+            for ident, x, z, height, age, conf, visible, confirmed in columns
+        ]
         return TrackBatch(
             stamp=t,
             seq=self.seq,
             frame_id="world",
             tracks=tuple(tracks),
-            alive_ids=tuple(int(i) for i in tb.ids),
+            alive_ids=tuple(tb.ids.tolist()),
             max_id=self.max_id,
         )
 
@@ -351,8 +371,8 @@ class Tracker:
             r = np.broadcast_to(self.measurement.noise(dets.distance), (len(x), len(dets), 2, 2))
         s = proj.pzz[:, None] + r
         resid = z - proj.z[:, None, :]
-        d2 = np.einsum("nmi,nmi->nm", resid, np.linalg.solve(s, resid[..., None])[..., 0])
-        return proj, z, r, d2, np.linalg.slogdet(s)[1]
+        d2, logdet = mahalanobis(resid, s)
+        return proj, z, r, d2, logdet
 
     def _associate_and_update(
         self, dets: DetectionArrays, t: float
@@ -480,10 +500,10 @@ class Tracker:
         r = self._position_model().noise(dets.distance)
         s = (h @ cov_b @ h.T)[:, None] + r[None]
         resid = dets.xy[None, :, :] - x_b[:, None, 0:2]
-        d2 = np.einsum("nmi,nmi->nm", resid, np.linalg.solve(s, resid[..., None])[..., 0])
+        d2, logdet = mahalanobis(resid, s)
         gater = self.gater if self.gater.dof == 2 else ChiSquareGater(self.gater.probability, 2)
         allowed = gater.gate(d2)
-        cost = self._base_cost(d2, np.linalg.slogdet(s)[1], dets)
+        cost = self._base_cost(d2, logdet, dets)
         pairs = self.associator.associate(cost, allowed)
         if not pairs:
             return
