@@ -289,17 +289,16 @@ class TrackerConfig(StrictModel):
         Associated detections a tentative track needs to become confirmed.
     sec_before_fake : float
         A tentative track not confirmed within this time is deleted.
+    tentative_timeout_s : float
+        A tentative track without a confident detection for this long is deleted, so the
+        ``detections_to_validate`` detections must come close together (clutter rarely
+        does; a person in view is detected every frame).
     sec_before_old : float
         A confirmed track without a detection of at least
         ``min_confidence_initialization`` for this long is deleted (low-confidence
         detections update a track but do not keep it alive).
     visibility_timeout_s : float
         A track unseen for longer than this is reported as not visible.
-    coast_velocity_decay_s : float
-        While a track is unseen (longer than ``visibility_timeout_s``) its velocity
-        estimate decays with this time constant: people who vanish mostly stop or turn,
-        so the prediction should not run on. The covariance keeps growing as for
-        constant velocity. 0 disables the decay.
     initial_velocity_sigma_mps : float
         Standard deviation of a new track's unknown velocity.
     height_smoothing : float
@@ -313,11 +312,14 @@ class TrackerConfig(StrictModel):
         How long a batch may wait for batches of other sensors captured earlier; 0
         applies batches in arrival order. Batches are released sooner when every other
         live sensor has already delivered a later frame.
-    late_policy : {"oosm", "drop"}
-        What to do with a batch older than batches already applied: apply it as an
-        out-of-sequence measurement, or drop it. Both are counted.
+    late_policy : {"replay", "drop"}
+        What to do with a batch captured before batches already applied: go back to the
+        tracker's state before its capture time and replay it and every later batch
+        (exact), or drop it. Both are counted.
     max_lateness_s : float
-        Batches later than this are always dropped.
+        How far back replays reach; later batches are dropped.
+    max_replay_steps : int
+        A late batch that would replay more steps than this is dropped.
     clock_correction : {"arrival", "none"}
         ``arrival``: estimate each sensor's clock offset from the minimum of
         (arrival time - stamp) and align all sensors to their median, so a sensor whose
@@ -339,16 +341,17 @@ class TrackerConfig(StrictModel):
     min_confidence_initialization: float = Field(0.5, ge=0.0, le=1.0)
     detections_to_validate: int = Field(3, ge=1, le=50)
     sec_before_fake: float = Field(2.4, gt=0.0, le=60.0)
+    tentative_timeout_s: float = Field(0.5, gt=0.0, le=60.0)
     sec_before_old: float = Field(3.0, gt=0.0, le=600.0)
     visibility_timeout_s: float = Field(0.25, gt=0.0, le=10.0)
-    coast_velocity_decay_s: float = Field(0.5, ge=0.0, le=60.0)
     initial_velocity_sigma_mps: float = Field(1.5, gt=0.0, le=20.0)
     height_smoothing: float = Field(0.1, gt=0.0, le=1.0)
     publish_tentative: bool = False
     publish_unseen_s: float = Field(0.5, ge=0.0, le=600.0)
     reorder_window_s: float = Field(0.05, ge=0.0, le=2.0)
-    late_policy: Literal["oosm", "drop"] = "oosm"
+    late_policy: Literal["replay", "drop"] = "replay"
     max_lateness_s: float = Field(1.0, ge=0.0, le=10.0)
+    max_replay_steps: int = Field(64, ge=1, le=10_000)
     clock_correction: Literal["arrival", "none"] = "arrival"
     max_tracks: int = Field(1000, ge=1, le=100_000)
 

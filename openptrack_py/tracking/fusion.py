@@ -13,8 +13,8 @@ order before the tracker sees them:
 * :class:`ReorderBuffer` holds a batch until either every other live sensor has
   delivered a frame that must be later than it (known from each sensor's frame
   period), or it has waited ``window_s``. In steady state this adds almost no delay.
-* A batch captured before one already applied is *late*; the tracker applies it as an
-  out-of-sequence measurement or drops it (``late_policy``), and it is counted.
+* A batch captured before one already applied is *late*; the tracker replays it from
+  its state before that capture, or drops it (``late_policy``), and it is counted.
 """
 
 from __future__ import annotations
@@ -182,7 +182,7 @@ class TrackingPipeline:
             self.aligner.observe(batch.sensor_id, batch.stamp, arrival)
             shift = self.aligner.correction(batch.sensor_id)
             if shift:
-                batch = replace(batch, stamp=batch.stamp - shift)
+                batch = replace(batch, stamp=batch.stamp + shift)
         return self._run(self.buffer.push(batch, arrival))
 
     def poll(self, now: float) -> list[tuple[DetectionBatch, TrackBatch]]:

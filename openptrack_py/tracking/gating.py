@@ -33,8 +33,8 @@ class ChiSquareGater:
             raise ValueError(
                 f"ChiSquareGater: probability must be in (0, 1), got {self.probability}"
             )
-        if self.dof < 1:
-            raise ValueError(f"ChiSquareGater: dof must be >= 1, got {self.dof}")
+        if isinstance(self.dof, bool) or not isinstance(self.dof, int) or self.dof < 1:
+            raise ValueError(f"ChiSquareGater: dof must be an integer >= 1, got {self.dof!r}")
         object.__setattr__(self, "threshold", float(chi2.ppf(self.probability, self.dof)))
 
     def gate(self, d2: np.ndarray) -> np.ndarray:

@@ -49,15 +49,23 @@ class TimeDeleter:
         A tentative track still unconfirmed this long after its first detection goes.
     sec_before_old : float
         A confirmed track unseen this long goes.
+    tentative_timeout_s : float
+        A tentative track unseen this long goes: the detections that confirm a track must
+        come close together, as a real person's do (a sensor sees them every frame),
+        not scattered like clutter.
     """
 
     sec_before_fake: float
     sec_before_old: float
+    tentative_timeout_s: float = float("inf")
 
     def delete(
         self, now: float, first_seen: np.ndarray, last_seen: np.ndarray, confirmed: np.ndarray
     ) -> np.ndarray:
         """Mask of tracks to delete at time ``now``."""
-        fake = ~confirmed & (now - first_seen >= self.sec_before_fake)
+        fake = ~confirmed & (
+            (now - first_seen >= self.sec_before_fake)
+            | (now - last_seen >= self.tentative_timeout_s)
+        )
         old = confirmed & (now - last_seen >= self.sec_before_old)
         return fake | old

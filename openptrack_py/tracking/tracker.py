@@ -12,15 +12,18 @@ Each batch is one step (DESIGN §4):
 5. assigned tracks are updated; unexplained confident detections start tentative tracks;
    tentative tracks are confirmed after enough detections; stale tracks are deleted.
 
-A batch captured before the tracker's current time (it arrived late) is applied as an
-out-of-sequence measurement: each track's state is retrodicted to the capture time to
-associate and compute the correction, which is then applied to the current state
-(Bar-Shalom's one-step "Al1" approximation). It never starts tracks.
+A batch captured before the tracker's current time (it arrived late) is applied exactly:
+the tracker keeps a snapshot of its state before each of the steps of the last
+``max_lateness_s``, returns to the last one taken before the late capture, and replays
+the late batch and every later one in capture order (``late_policy: replay``). A batch
+later than the history reaches is dropped and counted (``late_policy: drop`` drops every
+late batch).
 """
 
 from __future__ import annotations
 
 import logging
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -139,10 +142,23 @@ class TrackTable:
         for name in self.COLUMNS:
             setattr(self, name, getattr(self, name)[mask])
 
+    def copy(self) -> TrackTable:
+        """An independent copy."""
+        return TrackTable(**{name: getattr(self, name).copy() for name in self.COLUMNS})
+
     def append(self, **rows: np.ndarray) -> None:
         """Add rows (one array per column, same length)."""
         for name in self.COLUMNS:
             setattr(self, name, np.concatenate([getattr(self, name), rows[name]]))
+
+
+@dataclass(frozen=True)
+class _Snapshot:
+    table: TrackTable
+    time: float | None
+    max_id: int
+    started: int
+    deleted: int
 
 
 class Tracker:
@@ -168,8 +184,6 @@ class Tracker:
         Detections below this confidence are ignored.
     visibility_timeout_s : float
         Tracks unseen for longer are reported ``NOT_VISIBLE``.
-    coast_velocity_decay_s : float
-        Time constant of the velocity decay of unseen tracks (0: no decay).
     initial_velocity_sigma_mps : float
         Velocity uncertainty of a new track.
     height_smoothing : float
@@ -178,10 +192,12 @@ class Tracker:
         Include tentative tracks in the output.
     publish_unseen_s : float
         Leave out of the output tracks unseen for longer (they stay alive).
-    late_policy : {"oosm", "drop"}
-        Out-of-sequence batches: apply or drop.
+    late_policy : {"replay", "drop"}
+        Out-of-sequence batches: replay from the last snapshot before them, or drop.
     max_lateness_s : float
-        Later batches are always dropped.
+        How far back snapshots reach; later batches are dropped.
+    max_replay_steps : int
+        A late batch that would replay more steps than this is dropped.
     max_tracks : int
         No new track starts while this many exist.
     cost_terms : sequence of CostTerm
@@ -206,13 +222,13 @@ class Tracker:
         detector_weight: float = -1.0,
         min_confidence_detections: float = 0.0,
         visibility_timeout_s: float = 0.25,
-        coast_velocity_decay_s: float = 0.5,
         initial_velocity_sigma_mps: float = 1.5,
         height_smoothing: float = 0.1,
         publish_tentative: bool = False,
         publish_unseen_s: float = 0.5,
-        late_policy: str = "oosm",
+        late_policy: str = "replay",
         max_lateness_s: float = 1.0,
+        max_replay_steps: int = 64,
         max_tracks: int = 1000,
         cost_terms: Sequence[CostTerm] = (),
     ) -> None:
@@ -221,8 +237,10 @@ class Tracker:
                 f"Tracker: gater.dof ({gater.dof}) must equal the measurement dimension "
                 f"({measurement.dim})"
             )
-        if late_policy not in ("oosm", "drop"):
-            raise ValueError(f"Tracker: late_policy must be 'oosm' or 'drop', got {late_policy!r}")
+        if late_policy not in ("replay", "drop"):
+            raise ValueError(
+                f"Tracker: late_policy must be 'replay' or 'drop', got {late_policy!r}"
+            )
         self.motion = motion
         self.measurement = measurement
         self.gater = gater
@@ -232,13 +250,15 @@ class Tracker:
         self.detector_weight = detector_weight
         self.min_confidence_detections = min_confidence_detections
         self.visibility_timeout_s = visibility_timeout_s
-        self.coast_velocity_decay_s = coast_velocity_decay_s
         self.initial_velocity_sigma_mps = initial_velocity_sigma_mps
         self.height_smoothing = height_smoothing
         self.publish_tentative = publish_tentative
         self.publish_unseen_s = publish_unseen_s
         self.late_policy = late_policy
         self.max_lateness_s = max_lateness_s
+        self.max_replay_steps = max_replay_steps
+        # (stamp, state before the step, batch) of recent in-order steps
+        self._history: deque[tuple[float, _Snapshot, DetectionBatch]] = deque()
         self.max_tracks = max_tracks
         self.cost_terms = list(cost_terms)
         self.ukf = UnscentedKalmanFilter(MerweSigmaPoints(4))
@@ -247,7 +267,15 @@ class Tracker:
         self.max_id = 0
         self.seq = 0
         self.counters: dict[str, int] = dict.fromkeys(
-            ("steps", "late_applied", "late_dropped", "tracks_started", "tracks_deleted"), 0
+            (
+                "steps",
+                "late_applied",
+                "late_dropped",
+                "replayed_steps",
+                "tracks_started",
+                "tracks_deleted",
+            ),
+            0,
         )
 
     # ------------------------------------------------------------------- public
@@ -255,16 +283,59 @@ class Tracker:
     def step(self, batch: DetectionBatch) -> TrackBatch:
         """Apply one detection batch; return the tracks after it."""
         self.counters["steps"] += 1
-        dets = DetectionArrays.from_batch(batch, self.min_confidence_detections)
-        t = batch.stamp
-        if self.time is not None and t < self.time:
-            self._apply_late(dets, t)
+        if self.time is not None and batch.stamp < self.time:
+            self._apply_late(batch)
             return self.output(self.time)
+        self._advance(batch)
+        return self.output(batch.stamp)
+
+    def _advance(self, batch: DetectionBatch) -> None:
+        """One in-order step, remembered for replays."""
+        t = batch.stamp
+        if self.late_policy == "replay" and self.max_lateness_s > 0:
+            self._history.append((t, self._snapshot(), batch))
+            while self._history and self._history[0][0] < t - self.max_lateness_s:
+                self._history.popleft()
+        dets = DetectionArrays.from_batch(batch, self.min_confidence_detections)
         self._predict_to(t)
         assigned, in_gate = self._associate_and_update(dets, t)
         self._start_tracks(dets, assigned, in_gate, t)
         self._lifecycle(t)
-        return self.output(t)
+
+    def _snapshot(self) -> _Snapshot:
+        c = self.counters
+        return _Snapshot(
+            self.table.copy(), self.time, self.max_id, c["tracks_started"], c["tracks_deleted"]
+        )
+
+    def _apply_late(self, batch: DetectionBatch) -> None:
+        """Replay from the last state before ``batch``'s capture, or drop it."""
+        assert self.time is not None
+        history = self._history
+        later = [i for i, (stamp, _, _) in enumerate(history) if stamp > batch.stamp]
+        first = later[0] if later else len(history)
+        usable = (
+            self.late_policy == "replay"
+            and self.time - batch.stamp <= self.max_lateness_s
+            and first < len(history)
+            and (history[first][1].time is None or history[first][1].time <= batch.stamp)
+            and len(history) - first <= self.max_replay_steps
+        )
+        if not usable:
+            self.counters["late_dropped"] += 1
+            return
+        self.counters["late_applied"] += 1
+        replay = [entry[2] for entry in list(history)[first:]]
+        snapshot = history[first][1]
+        for _ in range(len(history) - first):
+            history.pop()
+        self.table, self.time, self.max_id = snapshot.table, snapshot.time, snapshot.max_id
+        # what happened after the snapshot is undone, and will be counted again on replay
+        self.counters["tracks_started"] = snapshot.started
+        self.counters["tracks_deleted"] = snapshot.deleted
+        self.counters["replayed_steps"] += len(replay)
+        for queued in sorted([batch, *replay], key=lambda b: b.stamp):
+            self._advance(queued)
 
     def adopt_state(self, other: Tracker) -> None:
         """Take over ``other``'s tracks, clock and id counter (after a reconfiguration)."""
@@ -329,9 +400,6 @@ class Tracker:
             tb.x, tb.cov = self.ukf.predict(
                 tb.x, tb.cov, dt, self.motion.fx, self.motion.noise(dt)
             )
-            if self.coast_velocity_decay_s > 0:
-                coasting = t - tb.last_seen > self.visibility_timeout_s
-                tb.x[coasting, 2:4] *= np.exp(-dt[coasting, None] / self.coast_velocity_decay_s)
         self.time = t if self.time is None else max(self.time, t)
 
     def _velocity_terms(self, dets: DetectionArrays, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -385,6 +453,11 @@ class Tracker:
         proj, z, r, d2, logdet = self._pair_terms(dets, t, tb.x, tb.cov)
         allowed = self.gater.gate(d2)
         in_gate = allowed.any(axis=0)
+        # A weak detection (clutter-like) may refine a track that is being seen, but may
+        # not capture a lost track whose gate has grown wide.
+        weak = dets.confidence < self.initiator.min_confidence
+        lost = t - tb.last_seen > self.visibility_timeout_s
+        allowed &= ~(lost[:, None] & weak[None, :])
         cost = self._base_cost(d2, logdet, dets)
         for term in self.cost_terms:
             cost = cost + term.cost(self, dets)
@@ -477,46 +550,6 @@ class Tracker:
             self.counters["tracks_deleted"] += int(gone.sum())
             tb.keep(~gone)
 
-    def _apply_late(self, dets: DetectionArrays, t: float) -> None:
-        """Out-of-sequence batch captured at ``t`` < current time."""
-        assert self.time is not None
-        lateness = self.time - t
-        tb = self.table
-        if self.late_policy == "drop" or lateness > self.max_lateness_s:
-            self.counters["late_dropped"] += 1
-            return
-        self.counters["late_applied"] += 1
-        if not len(tb) or not len(dets):
-            return
-        # Retrodict every track to the capture time: x_b = F(-d) x, with process noise
-        # over the gap added (conservative), and the current-vs-past cross covariance.
-        back = self.motion.transition(np.full(len(tb), -lateness))
-        q = self.motion.noise(np.full(len(tb), lateness))
-        x_b = np.einsum("nij,nj->ni", back, tb.x)
-        cov_b = back @ (tb.cov + q) @ np.swapaxes(back, 1, 2)
-        cross = tb.cov @ np.swapaxes(back, 1, 2)  # Cov(x_now, x_past)
-        h = np.zeros((2, 4))
-        h[0, 0] = h[1, 1] = 1.0
-        r = self._position_model().noise(dets.distance)
-        s = (h @ cov_b @ h.T)[:, None] + r[None]
-        resid = dets.xy[None, :, :] - x_b[:, None, 0:2]
-        d2, logdet = mahalanobis(resid, s)
-        gater = self.gater if self.gater.dof == 2 else ChiSquareGater(self.gater.probability, 2)
-        allowed = gater.gate(d2)
-        cost = self._base_cost(d2, logdet, dets)
-        pairs = self.associator.associate(cost, allowed)
-        if not pairs:
-            return
-        rows = np.array([p[0] for p in pairs])
-        cols = np.array([p[1] for p in pairs])
-        pxz = cross[rows] @ h.T  # (k, 4, 2)
-        s_k = s[rows, cols]
-        gain = pxz @ np.linalg.inv(s_k)
-        tb.x[rows] += np.einsum("kij,kj->ki", gain, resid[rows, cols])
-        new_cov = tb.cov[rows] - gain @ s_k @ np.swapaxes(gain, 1, 2)
-        tb.cov[rows] = 0.5 * (new_cov + np.swapaxes(new_cov, 1, 2))
-        self._absorb(rows, cols, dets, t)
-
     def _position_model(self) -> PositionMeasurement:
         m = self.measurement
         return m.position if isinstance(m, PositionVelocityMeasurement) else m
@@ -539,17 +572,17 @@ def build_tracker(
         initiator=ConfidenceInitiator(
             cfg.min_confidence_initialization, cfg.detections_to_validate
         ),
-        deleter=TimeDeleter(cfg.sec_before_fake, cfg.sec_before_old),
+        deleter=TimeDeleter(cfg.sec_before_fake, cfg.sec_before_old, cfg.tentative_timeout_s),
         detector_weight=cfg.detector_weight,
         min_confidence_detections=cfg.min_confidence_detections,
         visibility_timeout_s=cfg.visibility_timeout_s,
-        coast_velocity_decay_s=cfg.coast_velocity_decay_s,
         initial_velocity_sigma_mps=cfg.initial_velocity_sigma_mps,
         height_smoothing=cfg.height_smoothing,
         publish_tentative=cfg.publish_tentative,
         publish_unseen_s=cfg.publish_unseen_s,
         late_policy=cfg.late_policy,
         max_lateness_s=cfg.max_lateness_s,
+        max_replay_steps=cfg.max_replay_steps,
         max_tracks=cfg.max_tracks,
         cost_terms=cost_terms,
     )
