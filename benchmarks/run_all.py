@@ -11,7 +11,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks import bench_codec, bench_sim, bench_zenoh_latency
+from benchmarks import (
+    bench_codec,
+    bench_sim,
+    bench_stonesoup,
+    bench_tracker_cost,
+    bench_zenoh_latency,
+)
 from benchmarks.common import machine
 
 
@@ -21,6 +27,8 @@ def main() -> None:
         "codec": bench_codec.main(),
         "zenoh_latency": bench_zenoh_latency.main(),
         "simulator": bench_sim.main(),
+        "tracker_cost": bench_tracker_cost.main(),
+        "stonesoup": bench_stonesoup.main(),
     }
     out = Path(__file__).resolve().parent / "results" / "latest.json"
     out.parent.mkdir(exist_ok=True)

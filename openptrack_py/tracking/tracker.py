@@ -7,8 +7,9 @@ Each batch is one step (DESIGN §4):
    its residual under that track's *predicted* innovation covariance, so the gate
    widens while a person is unseen;
 3. pairs outside the chi-square gate are inadmissible;
-4. a global nearest-neighbour assignment picks pairs (cost = distance + the detector
-   confidence term + any extra cost terms, e.g. appearance);
+4. a global nearest-neighbour assignment picks pairs (cost = negative log-likelihood +
+   the detector confidence term + any extra cost terms, e.g. appearance), first among
+   confirmed tracks, then among tentative tracks for the detections left;
 5. assigned tracks are updated; unexplained confident detections start tentative tracks;
    tentative tracks are confirmed after enough detections; stale tracks are deleted.
 
@@ -461,7 +462,18 @@ class Tracker:
         cost = self._base_cost(d2, logdet, dets)
         for term in self.cost_terms:
             cost = cost + term.cost(self, dets)
-        pairs = self.associator.associate(cost, allowed)
+        # Confirmed tracks choose first; tentative tracks only get what is left, so a
+        # track born from clutter can never take a detection from a real person's track.
+        pairs = []
+        taken = np.zeros(len(dets), dtype=bool)
+        for stage in (tb.confirmed, ~tb.confirmed):
+            rows_in = np.flatnonzero(stage)
+            if not len(rows_in):
+                continue
+            stage_allowed = allowed[rows_in] & ~taken[None, :]
+            for i, j in self.associator.associate(cost[rows_in], stage_allowed):
+                pairs.append((int(rows_in[i]), j))
+                taken[j] = True
         if not pairs:
             return assigned, in_gate
         rows = np.array([p[0] for p in pairs])
