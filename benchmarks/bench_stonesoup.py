@@ -50,8 +50,8 @@ the harness's ``HypothesisFeed`` protocol. Every configuration choice:
   least ``min_confidence_initialization`` (0.5) confident are offered to the initiator
   (a small ``Initiator`` wrapper, :class:`ConfidentDetectionsOnly`); every detection
   is offered for association, as ours. Not reproduced: ours never starts a track from
-  a detection inside an existing track's gate, and its tentative tracks compete in the
-  main association.
+  a detection inside an existing track's gate, and its tentative tracks take only the
+  detections its confirmed tracks left.
 * **Deletion** (our rules, as small ``Deleter`` subclasses): a holding track goes
   ``sec_before_fake`` (2.4 s) after its first detection (:class:`AgeDeleter`) or, when
   ``TrackerConfig`` has ``tentative_timeout_s`` (0.5 s), after that long without a

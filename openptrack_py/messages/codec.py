@@ -76,6 +76,13 @@ def _int(obj: dict, key: str, path: str, lo: int = 0, hi: int = _MAX_INT) -> int
     return value
 
 
+def _bool(obj: dict, key: str, path: str, default: bool | None = None) -> bool:
+    value = obj.get(key, default)
+    if type(value) is not bool:
+        raise _fail(path + key, "true or false", value)
+    return value
+
+
 def _name(obj: dict, key: str, path: str) -> str:
     try:
         value = obj[key]
@@ -126,7 +133,7 @@ def _check_keys(obj: Any, allowed: frozenset[str], path: str) -> None:
         )
 
 
-def _parse(payload: bytes | bytearray | memoryview | str, kind: str) -> dict:
+def _parse(payload: bytes | bytearray | memoryview | str, kind: str, keys: frozenset[str]) -> dict:
     if isinstance(payload, str):
         try:
             payload = payload.encode()
@@ -146,6 +153,7 @@ def _parse(payload: bytes | bytearray | memoryview | str, kind: str) -> dict:
         raise _fail("v", f"schema version {SCHEMA_VERSION}", version)
     if obj.get("kind") != kind:
         raise _fail("kind", repr(kind), obj.get("kind"))
+    _check_keys(obj, keys, "")
     return obj
 
 
@@ -257,8 +265,7 @@ def decode_detection_batch(payload: bytes | bytearray | memoryview | str) -> Det
         Naming the first field that is missing, of the wrong type, not finite, out of
         range or too large.
     """
-    obj = _parse(payload, "detections")
-    _check_keys(obj, _DETECTION_BATCH_KEYS, "")
+    obj = _parse(payload, "detections", _DETECTION_BATCH_KEYS)
     items = _list(obj, "detections", "")
     return DetectionBatch(
         sensor_id=_name(obj, "sensor_id", ""),
@@ -346,9 +353,7 @@ def encode_track_batch(batch: TrackBatch) -> bytes:
 
 def _decode_track(obj: Any, path: str) -> Track:
     _check_keys(obj, _TRACK_KEYS, path)
-    confirmed = obj.get("confirmed", True)
-    if type(confirmed) is not bool:
-        raise _fail(path + "confirmed", "true or false", confirmed)
+    confirmed = _bool(obj, "confirmed", path, default=True)
     stable_id = _int(obj, "stable_id", path, 0, _MAX_ID) if "stable_id" in obj else None
     identity = None
     if "identity" in obj:
@@ -382,8 +387,7 @@ def decode_track_batch(payload: bytes | bytearray | memoryview | str) -> TrackBa
     WireFormatError
         Naming the first invalid field.
     """
-    obj = _parse(payload, "tracks")
-    _check_keys(obj, _TRACK_BATCH_KEYS, "")
+    obj = _parse(payload, "tracks", _TRACK_BATCH_KEYS)
     items = _list(obj, "tracks", "")
     return TrackBatch(
         stamp=_float(obj, "stamp", "", 0.0, 1.0e11),
@@ -418,8 +422,7 @@ def decode_heartbeat(payload: bytes | bytearray | memoryview | str) -> Heartbeat
     WireFormatError
         Naming the first invalid field.
     """
-    obj = _parse(payload, "heartbeat")
-    _check_keys(obj, _HEARTBEAT_KEYS, "")
+    obj = _parse(payload, "heartbeat", _HEARTBEAT_KEYS)
     return Heartbeat(
         stamp=_float(obj, "stamp", "", 0.0, 1.0e11),
         seq=_int(obj, "seq", ""),
@@ -469,9 +472,7 @@ def _decode_person(obj: Any, path: str) -> PersonState:
     kind = obj.get("kind")
     if kind not in _PERSON_KINDS:
         raise _fail(path + "kind", " or ".join(map(repr, _PERSON_KINDS)), kind)
-    covered = obj.get("covered")
-    if type(covered) is not bool:
-        raise _fail(path + "covered", "true or false", covered)
+    covered = _bool(obj, "covered", path)
     return PersonState(
         id=_int(obj, "id", path),
         x=_float(obj, "x", path, -MAX_COORD_M, MAX_COORD_M),
@@ -492,8 +493,7 @@ def decode_ground_truth(payload: bytes | bytearray | memoryview | str) -> Ground
     WireFormatError
         Naming the first invalid field.
     """
-    obj = _parse(payload, "ground_truth")
-    _check_keys(obj, _GROUND_TRUTH_KEYS, "")
+    obj = _parse(payload, "ground_truth", _GROUND_TRUTH_KEYS)
     items = _list(obj, "people", "")
     return GroundTruthFrame(
         stamp=_float(obj, "stamp", "", 0.0, 1.0e11),
@@ -551,8 +551,7 @@ def decode_node_stats(payload: bytes | bytearray | memoryview | str) -> NodeStat
     WireFormatError
         Naming the first invalid field.
     """
-    obj = _parse(payload, "stats")
-    _check_keys(obj, _STATS_KEYS, "")
+    obj = _parse(payload, "stats", _STATS_KEYS)
     host = obj.get("host", "")
     if type(host) is not str or len(host) > 255:
         raise _fail("host", "a host name", host)
@@ -601,8 +600,7 @@ def decode_config_update(payload: bytes | bytearray | memoryview | str) -> Confi
     WireFormatError
         Naming the first invalid field.
     """
-    obj = _parse(payload, "config_update")
-    _check_keys(obj, _UPDATE_KEYS, "")
+    obj = _parse(payload, "config_update", _UPDATE_KEYS)
     changes = obj.get("set", {})
     if type(changes) is not dict or len(changes) > _MAX_PARAMS:
         raise _fail("set", f"an object of at most {_MAX_PARAMS} parameters", changes)
@@ -639,11 +637,8 @@ def decode_config_ack(payload: bytes | bytearray | memoryview | str) -> ConfigAc
     WireFormatError
         Naming the first invalid field.
     """
-    obj = _parse(payload, "config_ack")
-    _check_keys(obj, _ACK_KEYS, "")
-    accepted = obj.get("accepted")
-    if type(accepted) is not bool:
-        raise _fail("accepted", "true or false", accepted)
+    obj = _parse(payload, "config_ack", _ACK_KEYS)
+    accepted = _bool(obj, "accepted", "")
     error = obj.get("error", "")
     if type(error) is not str or len(error) > 4096:
         raise _fail("error", "a string of at most 4096 characters", error)
