@@ -356,6 +356,150 @@ class TrackerConfig(StrictModel):
     max_tracks: int = Field(1000, ge=1, le=100_000)
 
 
+class SmootherConfig(StrictModel):
+    """OpenPTrack's moving-average smoother, corrected (defaults: OpenPTrack v2).
+
+    Parameters
+    ----------
+    rate_hz : float
+        Output rate.
+    window_size : int
+        Positions averaged per track.
+    position_lifetime_s : float
+        Positions older than this leave the average.
+    track_lifetime_s : float
+        A track leaves the output this long after its last real detection
+        (``track_lifetime_with_no_detections``).
+    publish_empty : bool
+        Send a frame every cycle even when no one is tracked; otherwise send an empty
+        frame every ``heartbeat_interval_s`` only.
+    heartbeat_interval_s : float
+        Period of the empty frames when ``publish_empty`` is off.
+    """
+
+    rate_hz: float = Field(30.0, gt=0.0, le=240.0)
+    window_size: int = Field(5, ge=1, le=100)
+    position_lifetime_s: float = Field(0.6, gt=0.0, le=60.0)
+    track_lifetime_s: float = Field(0.6, gt=0.0, le=60.0)
+    publish_empty: bool = True
+    heartbeat_interval_s: float = Field(1.0, gt=0.0, le=60.0)
+
+
+class UdpSinkConfig(StrictModel):
+    """One UDP JSON destination (OpenPTrack's ``ros2udp_converter``).
+
+    Parameters
+    ----------
+    host : str
+        Destination address: a host, a broadcast address (``x.x.x.255``) or a multicast
+        group (``224.0.0.1``).
+    port : int
+        Destination port.
+    mode : {"unicast", "broadcast", "multicast"}
+        How to send.
+    ttl : int
+        Multicast time-to-live (hops).
+    format : {"opt-v2", "opt-v1"}
+        Root key ``people_tracks`` (v2, what the TouchDesigner component reads) or
+        ``tracks`` (v1, what the Python, Processing, Max and Node examples read).
+    trailing_nul : bool
+        End each datagram with one NUL byte, as OpenPTrack does (the Processing example
+        needs it; some Max externals break on it).
+    heartbeat : bool
+        Send ``alive_IDs`` / ``max_ID`` heartbeats (also when the room is empty).
+    heartbeat_interval_s : float
+        Heartbeat period.
+    max_datagram_bytes : int
+        Frames larger than this are split into several complete JSON messages with the
+        same header (never two JSON objects in one datagram).
+    """
+
+    host: str = "127.0.0.1"
+    port: int = Field(21234, ge=1, le=65535)
+    mode: Literal["unicast", "broadcast", "multicast"] = "unicast"
+    ttl: int = Field(1, ge=0, le=255)
+    format: Literal["opt-v2", "opt-v1"] = "opt-v2"
+    trailing_nul: bool = True
+    heartbeat: bool = True
+    heartbeat_interval_s: float = Field(0.25, gt=0.0, le=60.0)
+    max_datagram_bytes: int = Field(65507, ge=512, le=65507)
+
+
+class OscSinkConfig(StrictModel):
+    """One OSC destination (python-osc).
+
+    Parameters
+    ----------
+    host : str
+        Destination address.
+    port : int
+        Destination port.
+    prefix : str
+        Address prefix: messages go to ``<prefix>/frame``, ``<prefix>/track`` and
+        ``<prefix>/alive``.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = Field(7000, ge=1, le=65535)
+    prefix: str = Field("/opt", pattern=r"^(/[A-Za-z0-9_\-]+)+$")
+
+
+class WebConfig(StrictModel):
+    """The WebSocket stream and the live web view.
+
+    Parameters
+    ----------
+    host : str
+        Address to listen on (``0.0.0.0`` to allow other machines).
+    port : int
+        HTTP and WebSocket port: the view is ``http://host:port/``, the stream
+        ``ws://host:port/ws``.
+    room : tuple of float, optional
+        ``[x0, y0, x1, y1]`` drawn as the room; the sensors' reach when omitted.
+    max_queue : int
+        Frames a slow client may lag behind before it is dropped.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = Field(8080, ge=0, le=65535)
+    room: tuple[float, float, float, float] | None = None
+    max_queue: int = Field(32, ge=1, le=10_000)
+
+
+class OutputConfig(StrictModel):
+    """An output node: smoother and sinks for creative apps.
+
+    Parameters
+    ----------
+    name : str
+        Node name (unique per site).
+    host : str
+        Machine that runs it.
+    source : {"smoothed", "raw"}
+        ``smoothed``: the moving-average smoother at a fixed rate. ``raw``: every
+        tracker step as it arrives (lowest latency).
+    smoother : SmootherConfig
+        Smoother parameters.
+    republish : bool
+        Publish the smoothed tracks on ``opt/<site>/tracks/smoothed``.
+    udp : list of UdpSinkConfig
+        UDP JSON destinations.
+    osc : list of OscSinkConfig
+        OSC destinations.
+    web : WebConfig, optional
+        WebSocket stream and web view.
+    """
+
+    name: Name = "output"
+    host: str = "localhost"
+    source: Literal["smoothed", "raw"] = "smoothed"
+    smoother: SmootherConfig = Field(default_factory=SmootherConfig)
+    republish: bool = True
+    udp: list[UdpSinkConfig] = Field(default_factory=list)
+    osc: list[OscSinkConfig] = Field(default_factory=list)
+    web: WebConfig | None = None
+
+
 class RecorderConfig(StrictModel):
     """A recorder node: writes every message on ``keys`` to a JSON-lines file.
 
@@ -389,6 +533,8 @@ class NetworkConfig(StrictModel):
         Present when some sensors are simulated.
     tracker : TrackerConfig, optional
         Present to run a tracker.
+    outputs : list of OutputConfig
+        Output nodes; names must be unique.
     recorder : RecorderConfig, optional
         Present to record the run.
     stats_interval_s : float
@@ -400,6 +546,7 @@ class NetworkConfig(StrictModel):
     sensors: list[SensorConfig] = Field(default_factory=list)
     sim: SimConfig | None = None
     tracker: TrackerConfig | None = None
+    outputs: list[OutputConfig] = Field(default_factory=list)
     recorder: RecorderConfig | None = None
     stats_interval_s: float = Field(2.0, gt=0.0, le=3600.0)
 
@@ -409,12 +556,30 @@ class NetworkConfig(StrictModel):
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:
             raise ValueError(f"sensor ids must be unique; repeated: {', '.join(duplicates)}")
+        names = [o.name for o in self.outputs]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"output names must be unique; repeated: {', '.join(twice)}")
         simulated = [s.id for s in self.sensors if s.source == "sim"]
         if simulated and self.sim is None:
             raise ValueError(
                 f"sensors {', '.join(simulated)} have source 'sim' but there is no 'sim' section"
             )
         return self
+
+    def output(self, name: str) -> OutputConfig:
+        """Return the output node with this name.
+
+        Raises
+        ------
+        ConfigError
+            If there is none.
+        """
+        for o in self.outputs:
+            if o.name == name:
+                return o
+        known = ", ".join(o.name for o in self.outputs) or "none"
+        raise ConfigError(f"outputs: no output named {name!r} (known: {known})")
 
     def sensor(self, sensor_id: str) -> SensorConfig:
         """Return the sensor with this id.

@@ -96,6 +96,11 @@ def plan_nodes(
         specs.append(NodeSpec("sim", "openptrack_py.nodes.sim", common))
     if cfg.tracker is not None and host_matches(cfg.tracker.host, host):
         specs.append(NodeSpec("tracker", "openptrack_py.nodes.tracker", common))
+    for out in cfg.outputs:
+        if host_matches(out.host, host):
+            specs.append(
+                NodeSpec(out.name, "openptrack_py.nodes.output", (*common, "--name", out.name))
+            )
     if cfg.recorder is not None and host_matches(cfg.recorder.host, host):
         specs.append(NodeSpec("record", "openptrack_py.nodes.record", common))
     return specs

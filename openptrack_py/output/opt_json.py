@@ -1,0 +1,145 @@
+"""OpenPTrack's UDP JSON, byte for byte, and a parser for it.
+
+Tracks message (``opt-v2``; ``opt-v1`` has the root key ``tracks``)::
+
+    {"header":{"seq":123,"stamp":{"sec":1441244414,"nsec":266356327},"frame_id":"world"},
+     "people_tracks":[{"id":170,"x":0.740519,"y":-3.21577,"height":1.01898,
+                       "age":79.4518,"confidence":0.491777}]}
+
+Heartbeat::
+
+    {"header":{"seq":5694,"stamp":{"sec":...,"nsec":...},"frame_id":"heartbeat"},
+     "alive_IDs":[59,60],"max_ID":60}
+
+As OpenPTrack writes them: compact, keys in this order, ``header`` first and the tracks
+array last, integers for ``seq``/``sec``/``nsec``/``id``, floats with six significant
+digits (C++ ``ostream`` default, i.e. ``%g``), and one trailing NUL byte (optional here).
+Unlike OpenPTrack, a number is never ``nan``/``inf`` and a datagram never holds two JSON
+objects; a frame larger than the datagram limit is split into several complete messages
+with the same header. In ``opt-v2``, tracks with a stable identity also carry
+``stable_id`` and, for registered people, ``face_name`` (OpenPTrack v2's face mode).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Sequence
+
+from openptrack_py.errors import WireFormatError
+from openptrack_py.messages.track import Track
+
+FORMATS = {"opt-v2": "people_tracks", "opt-v1": "tracks"}
+_NUL = b"\x00"
+
+
+def number(value: float) -> str:
+    """``value`` as OpenPTrack writes it: six significant digits, ``%g`` style.
+
+    Raises
+    ------
+    WireFormatError
+        For NaN or infinity (OpenPTrack would write invalid JSON).
+    """
+    if not math.isfinite(value):
+        raise WireFormatError(f"OpenPTrack JSON: refusing to write {value}")
+    return format(value, ".6g")
+
+
+def _string(text: str) -> str:
+    # Jzon escapes '/' as '\/'; JSON allows both, and clients decode both.
+    return json.dumps(text, ensure_ascii=False).replace("/", "\\/")
+
+
+def _header(seq: int, stamp: float, frame_id: str) -> str:
+    sec = math.floor(stamp)
+    nsec = min(round((stamp - sec) * 1e9), 999_999_999)
+    return (
+        f'{{"header":{{"seq":{int(seq)},"stamp":{{"sec":{sec},"nsec":{nsec}}},'
+        f'"frame_id":{_string(frame_id)}}}'
+    )
+
+
+def _track(track: Track, extended: bool) -> str:
+    text = (
+        f'{{"id":{int(track.id)},"x":{number(track.x)},"y":{number(track.y)},'
+        f'"height":{number(track.height)},"age":{number(track.age)},'
+        f'"confidence":{number(track.confidence)}'
+    )
+    if extended and track.stable_id is not None:
+        text += f',"stable_id":{int(track.stable_id)}'
+        if track.identity is not None:
+            text += f',"face_name":{_string(track.identity)}'
+    return text + "}"
+
+
+def encode_tracks(
+    tracks: Sequence[Track],
+    *,
+    seq: int,
+    stamp: float,
+    fmt: str = "opt-v2",
+    trailing_nul: bool = True,
+    max_bytes: int = 65507,
+    frame_id: str = "world",
+) -> list[bytes]:
+    """One tracks frame as datagrams (normally one; more if it exceeds ``max_bytes``).
+
+    Raises
+    ------
+    ValueError
+        For an unknown format, or a single track that cannot fit in ``max_bytes``.
+    """
+    if fmt not in FORMATS:
+        raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    head = f'{_header(seq, stamp, frame_id)},"{FORMATS[fmt]}":['
+    tail = "]}"
+    extra = len(_NUL) if trailing_nul else 0
+    items = [_track(t, fmt == "opt-v2") for t in tracks]
+    out: list[bytes] = []
+    chunk: list[str] = []
+    size = len(head) + len(tail) + extra
+    for item in items:
+        added = len(item.encode()) + (1 if chunk else 0)
+        if chunk and size + added > max_bytes:
+            out.append(_finish(head, chunk, tail, trailing_nul))
+            chunk, size = [], len(head) + len(tail) + extra
+            added = len(item.encode())
+        if size + added > max_bytes:
+            raise ValueError(f"one track needs more than max_bytes={max_bytes} bytes")
+        chunk.append(item)
+        size += added
+    out.append(_finish(head, chunk, tail, trailing_nul))
+    return out
+
+
+def _finish(head: str, items: list[str], tail: str, trailing_nul: bool) -> bytes:
+    data = (head + ",".join(items) + tail).encode()
+    return data + _NUL if trailing_nul else data
+
+
+def encode_heartbeat(
+    alive_ids: Iterable[int], max_id: int, *, seq: int, stamp: float, trailing_nul: bool = True
+) -> bytes:
+    """An ``alive_IDs`` / ``max_ID`` heartbeat datagram."""
+    ids = ",".join(str(int(i)) for i in alive_ids)
+    data = f'{_header(seq, stamp, "heartbeat")},"alive_IDs":[{ids}],"max_ID":{int(max_id)}}}'
+    return data.encode() + (_NUL if trailing_nul else b"")
+
+
+def parse_datagram(data: bytes) -> dict:
+    """Decode one OpenPTrack datagram (trailing NULs allowed) into a dict.
+
+    Raises
+    ------
+    WireFormatError
+        If it is not exactly one JSON object with a header.
+    """
+    text = data.rstrip(_NUL)
+    try:
+        obj = json.loads(text)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise WireFormatError(f"OpenPTrack datagram: not one JSON object ({exc})") from None
+    if not isinstance(obj, dict) or "header" not in obj:
+        raise WireFormatError("OpenPTrack datagram: no header")
+    return obj

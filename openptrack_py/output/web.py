@@ -1,0 +1,261 @@
+"""The WebSocket stream and the live web view, on one port.
+
+``http://host:port/`` is a self-contained page (no build step, nothing from a CDN) that
+draws the room from above: tracks with ids and fading trails, sensors with their fields
+of view, a frame counter and the frame rate. ``ws://host:port/ws`` streams JSON text
+messages, which any browser sketch (p5.js...) can read:
+
+* on connection, once: ``{"type": "scene", "site": ..., "room": [x0, y0, x1, y1],
+  "sensors": [{"id", "type", "x", "y", "z", "yaw_deg", "pitch_deg", "hfov_deg",
+  "range_m"}]}``;
+* every frame: ``{"type": "tracks", "seq", "stamp", "tracks": [{"id", "x", "y", "z",
+  "height", "vx", "vy", "age", "confidence", "visibility"}], "alive_ids", "max_id"}``.
+
+Each client has a queue of ``max_queue`` frames; a client that falls that far behind is
+disconnected (close code 1013, "try again later") rather than buffered without bound,
+and counted as ``web.slow_clients``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib.resources
+import logging
+import threading
+from typing import Any
+
+import orjson
+
+from openptrack_py.config import NetworkConfig, WebConfig
+from openptrack_py.errors import ConfigError
+from openptrack_py.messages.track import TrackBatch
+from openptrack_py.runtime.counters import Counters
+
+log = logging.getLogger(__name__)
+# one line per HTTP request and connection is too much for a node's log
+logging.getLogger("websockets").setLevel(logging.WARNING)
+
+try:
+    from websockets.asyncio.server import ServerConnection, serve
+    from websockets.exceptions import ConnectionClosed
+except ImportError:  # pragma: no cover - exercised only without the [web] extra
+    serve = None  # type: ignore[assignment]
+
+_CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8"}
+
+
+def scene(network: NetworkConfig, cfg: WebConfig) -> dict[str, Any]:
+    """What the view draws besides tracks: room outline and sensors."""
+    from openptrack_py.sim.sensors import SENSOR_TYPES
+
+    sensors = []
+    for s in network.sensors:
+        if s.pose is None:
+            continue
+        kind = SENSOR_TYPES[s.type]
+        sensors.append(
+            {
+                "id": s.id,
+                "type": s.type,
+                "x": s.pose.x,
+                "y": s.pose.y,
+                "z": s.pose.z,
+                "yaw_deg": s.pose.yaw_deg,
+                "pitch_deg": s.pose.pitch_deg,
+                "hfov_deg": kind.hfov_deg,
+                "range_m": kind.reliable_range_m,
+            }
+        )
+    room = list(cfg.room) if cfg.room is not None else _reach(sensors)
+    return {"type": "scene", "site": network.site, "room": room, "sensors": sensors}
+
+
+def _reach(sensors: list[dict[str, Any]]) -> list[float]:
+    if not sensors:
+        return [-5.0, -5.0, 5.0, 5.0]
+    xs = [s["x"] for s in sensors]
+    ys = [s["y"] for s in sensors]
+    return [min(xs) - 1.0, min(ys) - 1.0, max(xs) + 1.0, max(ys) + 1.0]
+
+
+def frame_message(frame: TrackBatch) -> bytes:
+    """The JSON text message of one frame."""
+    return orjson.dumps(
+        {
+            "type": "tracks",
+            "seq": frame.seq,
+            "stamp": frame.stamp,
+            "tracks": [
+                {
+                    "id": t.id,
+                    "x": t.x,
+                    "y": t.y,
+                    "z": t.z,
+                    "height": t.height,
+                    "vx": t.vx,
+                    "vy": t.vy,
+                    "age": t.age,
+                    "confidence": t.confidence,
+                    "visibility": int(t.visibility),
+                }
+                for t in frame.tracks
+            ],
+            "alive_ids": list(frame.alive_ids),
+            "max_id": frame.max_id,
+        }
+    )
+
+
+def _static(name: str) -> bytes:
+    return importlib.resources.files("openptrack_py.output").joinpath("web", name).read_bytes()
+
+
+class WebServer:
+    """Serves the page and the stream from its own thread and event loop.
+
+    Parameters
+    ----------
+    cfg : WebConfig
+        Address, port (0: any free port, see :attr:`port`) and client queue size.
+    scene_message : dict
+        Sent to each client on connection.
+    counters : Counters
+        Where ``web.clients``, ``web.slow_clients`` are counted.
+
+    Raises
+    ------
+    ConfigError
+        If the ``websockets`` package (the ``[web]`` extra) is missing or the port is
+        taken.
+    """
+
+    def __init__(self, cfg: WebConfig, scene_message: dict[str, Any], counters: Counters) -> None:
+        if serve is None:
+            raise ConfigError("outputs.web: the web view needs pip install 'openptrack_py[web]'")
+        self.cfg = cfg
+        self.counters = counters
+        self._scene = orjson.dumps(scene_message)
+        self._clients: dict[ServerConnection, asyncio.Queue[bytes]] = {}
+        self._files = {f"/{n}": _static(n) for n in ("index.html", "view.js")}
+        self._files["/"] = self._files["/index.html"]
+        self._loop = asyncio.new_event_loop()
+        self._ready = threading.Event()
+        self._stop: asyncio.Future[None] | None = None
+        self._error: BaseException | None = None
+        self.port = cfg.port
+        self._thread = threading.Thread(target=self._run, name="web", daemon=True)
+        self._thread.start()
+        self._ready.wait(10.0)
+        if self._error is not None:
+            raise ConfigError(
+                f"outputs.web: cannot listen on {cfg.host}:{cfg.port}: {self._error}"
+            ) from None
+
+    # ------------------------------------------------------------- event loop side
+
+    def _http(self, connection: ServerConnection, request: Any) -> Any:
+        path = request.path.split("?", 1)[0]
+        if path == "/ws":
+            return None  # go on with the WebSocket handshake
+        if path == "/scene.json":
+            body, kind = self._scene, "application/json"
+        elif path in self._files:
+            body = self._files[path]
+            kind = _CONTENT_TYPES[".js" if path.endswith(".js") else ".html"]
+        else:
+            return connection.respond(404, "not found\n")
+        response = connection.respond(200, "")
+        response.body = body
+        del response.headers["Content-Type"]
+        del response.headers["Content-Length"]
+        response.headers["Content-Type"] = kind
+        response.headers["Content-Length"] = str(len(body))
+        response.headers["Cache-Control"] = "no-store"
+        return response
+
+    async def _client(self, ws: ServerConnection) -> None:
+        queue: asyncio.Queue[bytes] = asyncio.Queue(self.cfg.max_queue)
+        self._clients[ws] = queue
+        self.counters.inc("web.clients")
+        try:
+            await ws.send(self._scene.decode())
+            while True:
+                await ws.send((await queue.get()).decode())
+        except ConnectionClosed:
+            pass
+        finally:
+            self._clients.pop(ws, None)
+
+    def _broadcast(self, message: bytes) -> None:
+        for ws, queue in list(self._clients.items()):
+            if queue.full():
+                self._clients.pop(ws, None)
+                self.counters.inc("web.slow_clients")
+                self._loop.create_task(ws.close(1013, "too slow: dropped"))
+                continue
+            queue.put_nowait(message)
+
+    async def _main(self) -> None:
+        try:
+            server = await serve(
+                self._client, self.cfg.host, self.cfg.port, process_request=self._http
+            )
+        except OSError as exc:
+            self._error = exc
+            self._ready.set()
+            return
+        self.port = server.sockets[0].getsockname()[1]
+        self._stop = self._loop.create_future()
+        self._ready.set()
+        async with server:
+            await self._stop
+
+    def _run(self) -> None:
+        asyncio.set_event_loop(self._loop)
+        self._loop.run_until_complete(self._main())
+
+    # ------------------------------------------------------------------ any thread
+
+    def broadcast(self, message: bytes) -> None:
+        """Queue a message for every client (thread-safe, never blocks)."""
+        self._loop.call_soon_threadsafe(self._broadcast, message)
+
+    @property
+    def clients(self) -> int:
+        """Connected clients."""
+        return len(self._clients)
+
+    def close(self) -> None:
+        """Disconnect everyone and stop serving."""
+        if self._stop is not None and not self._loop.is_closed():
+            self._loop.call_soon_threadsafe(self._stop.set_result, None)
+        self._thread.join(5.0)
+
+
+class WebSink:
+    """Streams frames to the web server's clients.
+
+    Parameters
+    ----------
+    server : WebServer
+        The server.
+    name : str
+        Name used in counters and logs.
+    """
+
+    poll_interval_s = None
+
+    def __init__(self, server: WebServer, name: str = "web") -> None:
+        self.server = server
+        self.name = name
+
+    def send(self, frame: TrackBatch, now: float) -> None:
+        """Queue one frame for every client."""
+        self.server.broadcast(frame_message(frame))
+
+    def poll(self, now: float) -> None:
+        """Nothing periodic."""
+
+    def close(self) -> None:
+        """Stop the server."""
+        self.server.close()
