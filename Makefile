@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml scripts/bootstrap
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/openptrack launch demo $(if $(DEMO_SECONDS),--duration $(DEMO_SECONDS))
+	$(VENV)/bin/openptrack launch demo --table $(if $(DEMO_SECONDS),--duration $(DEMO_SECONDS))
 
 test: $(STAMP)
 	$(PY) -m pytest

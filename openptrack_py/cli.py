@@ -56,7 +56,9 @@ def _cmd_launch(args: argparse.Namespace) -> int:
     cfg = load_network(path, args.overrides)
     host = args.host or this_host()
     passthrough = [a for o in args.overrides for a in ("--set", o)]
-    passthrough += ["--log-level", args.log_level, "--log-format", args.log_format]
+    # With the live table, node logs would scroll it away: only warnings get through.
+    level = "warning" if args.table and args.log_level == "info" else args.log_level
+    passthrough += ["--log-level", level, "--log-format", args.log_format]
     specs = plan_nodes(cfg, host, path.resolve(), passthrough)
     if not specs:
         print(f"openptrack launch: no node of {path} runs on host {host!r}", file=sys.stderr)
@@ -84,14 +86,25 @@ def _cmd_launch(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     board = StatusBoard(hub, cfg.site) if hub is not None else None
     reporter = None
-    if board is not None and args.status_interval > 0:
+    if board is not None and (args.status_interval > 0 or args.table):
         import threading
 
+        from openptrack_py.runtime.table import TrackView, render
+
         stop = threading.Event()
+        view = TrackView(hub, cfg.site) if args.table else None
+        redraw = sys.stdout.isatty()
+        interval = 1.0 if args.table else args.status_interval
 
         def report() -> None:
-            while not stop.wait(args.status_interval):
-                supervisor.say("status", board.summary_line())
+            while not stop.wait(interval):
+                if view is None:
+                    supervisor.say("status", board.summary_line())
+                elif redraw:  # a terminal: repaint in place, like top
+                    supervisor.say_raw("\x1b[H\x1b[J" + render(view, board) + "\n")
+                else:
+                    for line in render(view, board).splitlines():
+                        supervisor.say("table", line)
 
         reporter = threading.Thread(target=report, daemon=True)
         reporter.start()
@@ -367,6 +380,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument(
         "--status-interval", type=float, default=5.0, help="seconds between status lines (0: off)"
+    )
+    p.add_argument(
+        "--table",
+        action="store_true",
+        help="show a live table of the tracks and node rates (node logs: warnings only)",
     )
     p.add_argument("--log-level", default="info", choices=("debug", "info", "warning", "error"))
     p.add_argument("--log-format", default="text", choices=("text", "json"))

@@ -172,6 +172,12 @@ class Supervisor:
             self.out.write(f"[{name}] {line.rstrip()}\n")
             self.out.flush()
 
+    def say_raw(self, text: str) -> None:
+        """Write ``text`` as it is (for a table repainted in place)."""
+        with self._lock:
+            self.out.write(text)
+            self.out.flush()
+
     def _pump(self, child: _Child, stream: IO[str]) -> None:
         for line in stream:
             self.say(child.spec.name, line)

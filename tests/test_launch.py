@@ -27,7 +27,7 @@ DEMO = ROOT / "config" / "demo.yaml"
 def test_demo_runs_the_simulator_on_this_host() -> None:
     cfg = load_network(DEMO)
     specs = plan_nodes(cfg, this_host(), DEMO, ["--log-level", "debug"])
-    assert [s.name for s in specs] == ["sim", "tracker"]
+    assert [s.name for s in specs] == ["sim", "tracker", "output"]
     assert specs[0].command()[1:] == [
         "-m", "openptrack_py.nodes.sim", "-c", str(DEMO), "--log-level", "debug",
     ]  # fmt: skip
@@ -112,6 +112,10 @@ def _network(tmp_path: Path, hub: str, **sim: object) -> Path:
     data = yaml.safe_load(DEMO.read_text())
     data["zenoh"]["hub"] = hub
     data["sim"].update(sim)
+    for out in data.get("outputs", []):  # free ports, so parallel runs never collide
+        out["web"]["port"] = 0
+        for udp in out["udp"]:
+            udp["port"] = free_port()
     path = tmp_path / "net.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
@@ -153,7 +157,11 @@ def test_launch_runs_the_network_and_stops_cleanly(
     assert sim["alive"] and sim["out_hz"] > 50  # three sensors at 30 Hz plus ground truth
     sim_pid = sim["pid"]
 
-    wait_for(lambda: "[status] sim out" in log.read_text(), 15, "a status line")
+    wait_for(
+        lambda: any("sim out" in x for x in log.read_text().splitlines() if "[status]" in x),
+        15,
+        "a status line",
+    )
     launcher.send_signal(stop_signal)
     assert launcher.wait(timeout=20) == 0
     text = log.read_text()

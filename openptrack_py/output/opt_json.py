@@ -127,6 +127,33 @@ def encode_heartbeat(
     return data.encode() + (_NUL if trailing_nul else b"")
 
 
+def encode_heartbeats(
+    alive_ids: Sequence[int],
+    max_id: int,
+    *,
+    seq: int,
+    stamp: float,
+    trailing_nul: bool = True,
+    max_bytes: int = 65507,
+) -> list[bytes]:
+    """A heartbeat as datagrams of at most ``max_bytes``.
+
+    Normally one; a very long ``alive_IDs`` list is split over several complete
+    heartbeats with the same header, each listing part of the ids.
+    """
+    ids = list(alive_ids)
+    whole = encode_heartbeat(ids, max_id, seq=seq, stamp=stamp, trailing_nul=trailing_nul)
+    if len(whole) <= max_bytes or len(ids) <= 1:
+        return [whole]
+    half = len(ids) // 2
+    return [
+        *encode_heartbeats(ids[:half], max_id, seq=seq, stamp=stamp,
+                           trailing_nul=trailing_nul, max_bytes=max_bytes),
+        *encode_heartbeats(ids[half:], max_id, seq=seq, stamp=stamp,
+                           trailing_nul=trailing_nul, max_bytes=max_bytes),
+    ]  # fmt: skip
+
+
 def parse_datagram(data: bytes) -> dict:
     """Decode one OpenPTrack datagram (trailing NULs allowed) into a dict.
 

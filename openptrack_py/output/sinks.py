@@ -17,7 +17,7 @@ from typing import Protocol
 
 from openptrack_py.config import UdpSinkConfig
 from openptrack_py.messages.track import TrackBatch
-from openptrack_py.output.opt_json import encode_heartbeat, encode_tracks
+from openptrack_py.output.opt_json import encode_heartbeats, encode_tracks
 from openptrack_py.runtime.counters import Counters
 from openptrack_py.runtime.logs import RateLimitedLog
 
@@ -164,15 +164,15 @@ class UdpJsonSink:
             return
         self._next_heartbeat = now + self.cfg.heartbeat_interval_s
         self._heartbeat_seq += 1
-        self._send(
-            encode_heartbeat(
-                self._alive,
-                self._max_id,
-                seq=self._heartbeat_seq,
-                stamp=now,
-                trailing_nul=self.cfg.trailing_nul,
-            )
-        )
+        for data in encode_heartbeats(
+            self._alive,
+            self._max_id,
+            seq=self._heartbeat_seq,
+            stamp=now,
+            trailing_nul=self.cfg.trailing_nul,
+            max_bytes=self.cfg.max_datagram_bytes,
+        ):
+            self._send(data)
 
     def close(self) -> None:
         """Close the socket."""
