@@ -465,6 +465,15 @@ class WebConfig(StrictModel):
     room: tuple[float, float, float, float] | None = None
     max_queue: int = Field(32, ge=1, le=10_000)
 
+    @field_validator("room")
+    @classmethod
+    def _room_has_area(
+        cls, room: tuple[float, float, float, float] | None
+    ) -> tuple[float, float, float, float] | None:
+        if room is not None and not (room[2] > room[0] and room[3] > room[1]):
+            raise ValueError("must be [x0, y0, x1, y1] with x1 > x0 and y1 > y0")
+        return room
+
 
 class OutputConfig(StrictModel):
     """An output node: smoother and sinks for creative apps.

@@ -23,6 +23,7 @@ import socket
 from openptrack_py.config import OscSinkConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages.track import TrackBatch
+from openptrack_py.output.sinks import _Resolver
 
 try:
     from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
@@ -94,16 +95,15 @@ class OscSink:
         self.name = name
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.setblocking(False)
-        self._address: tuple[str, int] | None = None
+        self._resolver = _Resolver(cfg.host, cfg.port)
         self._seq = 0
 
     def send(self, frame: TrackBatch, now: float) -> None:
         """Send one frame's bundle."""
-        if self._address is None:
-            self._address = (socket.gethostbyname(self.cfg.host), self.cfg.port)
+        address = self._resolver.address()
         self._seq += 1
         try:
-            self._sock.sendto(build_bundle(frame, self._seq, self.cfg.prefix), self._address)
+            self._sock.sendto(build_bundle(frame, self._seq, self.cfg.prefix), address)
         except BlockingIOError:
             raise OSError("socket buffer full, bundle dropped") from None
 

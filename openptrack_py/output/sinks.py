@@ -79,7 +79,7 @@ class SinkWorker:
                 if not self._queue and not self._closed:
                     self._cond.wait(timeout=interval)
                 if self._closed and not self._queue:
-                    return
+                    break
                 frame = self._queue.popleft() if self._queue else None
             now = time.time()
             try:
@@ -93,14 +93,51 @@ class SinkWorker:
             except Exception:
                 self.counters.inc(f"{self.sink.name}.errors")
                 log.exception("sink %s failed", self.sink.name)
+        self.sink.close()  # on this thread: nothing can use the sink after it is closed
 
     def close(self, timeout_s: float = 2.0) -> None:
-        """Send what is queued, stop the thread, close the sink."""
+        """Send what is queued, then stop.
+
+        A sink stuck longer than ``timeout_s`` is abandoned: its queue is emptied and it
+        closes itself when its send returns.
+        """
         with self._cond:
             self._closed = True
             self._cond.notify()
         self._thread.join(timeout_s)
-        self.sink.close()
+        if self._thread.is_alive():
+            with self._cond:
+                self._queue.clear()
+            log.warning("sink %s did not stop within %g s", self.sink.name, timeout_s)
+
+
+class _Resolver:
+    """Resolves a host name once, on the sink's thread.
+
+    After a failure it retries only every ``retry_s``: a dead name server must not be
+    asked on every frame.
+    """
+
+    def __init__(self, host: str, port: int, retry_s: float = 5.0) -> None:
+        self.host, self.port, self.retry_s = host, port, retry_s
+        self._address: tuple[str, int] | None = None
+        self._retry_at = 0.0
+        self._error: OSError | None = None
+
+    def address(self) -> tuple[str, int]:
+        """The resolved ``(ip, port)``; raises the last lookup error while it fails."""
+        if self._address is not None:
+            return self._address
+        now = time.monotonic()
+        if now < self._retry_at and self._error is not None:
+            raise self._error
+        try:
+            self._address = (socket.gethostbyname(self.host), self.port)
+        except OSError as exc:
+            self._error = OSError(f"cannot resolve {self.host!r}: {exc}")
+            self._retry_at = now + self.retry_s
+            raise self._error from None
+        return self._address
 
 
 class UdpJsonSink:
@@ -125,21 +162,16 @@ class UdpJsonSink:
             self._sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, cfg.ttl)
             self._sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
         self._sock.setblocking(False)  # a full buffer drops a datagram, never waits
-        self._address: tuple[str, int] | None = None
+        self._resolver = _Resolver(cfg.host, cfg.port)
         self._seq = 0
         self._heartbeat_seq = 0
         self._alive: tuple[int, ...] = ()
         self._max_id = 0
         self._next_heartbeat = 0.0
 
-    def _target(self) -> tuple[str, int]:
-        if self._address is None:  # resolved once, on the sink's own thread
-            self._address = (socket.gethostbyname(self.cfg.host), self.cfg.port)
-        return self._address
-
     def _send(self, data: bytes) -> None:
         try:
-            self._sock.sendto(data, self._target())
+            self._sock.sendto(data, self._resolver.address())
         except BlockingIOError:
             raise OSError("socket buffer full, datagram dropped") from None
 

@@ -136,6 +136,7 @@ class WebServer:
         self.counters = counters
         self._scene = orjson.dumps(scene_message)
         self._clients: dict[ServerConnection, asyncio.Queue[bytes]] = {}
+        self._closing: set[asyncio.Task[None]] = set()
         self._files = {f"/{n}": _static(n) for n in ("index.html", "view.js")}
         self._files["/"] = self._files["/index.html"]
         self._loop = asyncio.new_event_loop()
@@ -177,13 +178,20 @@ class WebServer:
         queue: asyncio.Queue[bytes] = asyncio.Queue(self.cfg.max_queue)
         self._clients[ws] = queue
         self.counters.inc("web.clients")
+        closed = asyncio.ensure_future(ws.wait_closed())  # notice a client that left
         try:
             await ws.send(self._scene.decode())
             while True:
-                await ws.send((await queue.get()).decode())
+                getter = asyncio.ensure_future(queue.get())
+                await asyncio.wait({getter, closed}, return_when=asyncio.FIRST_COMPLETED)
+                if not getter.done():
+                    getter.cancel()
+                    break
+                await ws.send(getter.result().decode())
         except ConnectionClosed:
             pass
         finally:
+            closed.cancel()
             self._clients.pop(ws, None)
 
     def _broadcast(self, message: bytes) -> None:
@@ -191,7 +199,9 @@ class WebServer:
             if queue.full():
                 self._clients.pop(ws, None)
                 self.counters.inc("web.slow_clients")
-                self._loop.create_task(ws.close(1013, "too slow: dropped"))
+                task = self._loop.create_task(ws.close(1013, "too slow: dropped"))
+                self._closing.add(task)  # keep a reference until it is done
+                task.add_done_callback(self._closing.discard)
                 continue
             queue.put_nowait(message)
 

@@ -23,8 +23,12 @@ function colour(id) {
 function layout() {
   const rect = canvas.getBoundingClientRect();
   const dpr = window.devicePixelRatio || 1;
-  canvas.width = Math.max(1, Math.round(rect.width * dpr));
-  canvas.height = Math.max(1, Math.round(rect.height * dpr));
+  const width = Math.max(1, Math.round(rect.width * dpr));
+  const height = Math.max(1, Math.round(rect.height * dpr));
+  if (canvas.width !== width || canvas.height !== height) {
+    canvas.width = width; // resizing clears the canvas: only when the size changed
+    canvas.height = height;
+  }
   const [x0, y0, x1, y1] = scene.room;
   const pad = 40 * dpr;
   const scale = Math.min((canvas.width - 2 * pad) / (x1 - x0), (canvas.height - 2 * pad) / (y1 - y0));
@@ -48,7 +52,7 @@ function draw() {
   ctx.strokeStyle = "#5a6675";
   ctx.lineWidth = 2 * v.dpr;
   ctx.strokeRect(v.px(x0), v.py(y1), (x1 - x0) * v.scale, (y1 - y0) * v.scale);
-  // sensors and their horizontal fields of view
+  // sensors' horizontal fields of view, then the sensors on top of all of them
   for (const s of scene.sensors) {
     const yaw = (s.yaw_deg * Math.PI) / 180;
     const half = (s.hfov_deg * Math.PI) / 360;
@@ -60,6 +64,8 @@ function draw() {
     }
     ctx.closePath();
     ctx.fill();
+  }
+  for (const s of scene.sensors) {
     ctx.fillStyle = "#78a0dc";
     ctx.fillRect(v.px(s.x) - 4 * v.dpr, v.py(s.y) - 4 * v.dpr, 8 * v.dpr, 8 * v.dpr);
     label(s.id, v.px(s.x) + 6 * v.dpr, v.py(s.y) - 6 * v.dpr, "#78a0dc", v.dpr);
@@ -128,9 +134,12 @@ function onTracks(msg) {
 }
 
 function connect() {
-  const ws = new WebSocket(`ws://${location.host}/ws`);
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const ws = new WebSocket(`${scheme}://${location.host}/ws`);
   ws.onopen = () => { el("status").textContent = "live"; el("status").className = "ok"; };
   ws.onclose = () => {
+    tracks = []; // what was drawn is stale now
+    draw();
     el("status").textContent = "reconnecting";
     el("status").className = "bad";
     setTimeout(connect, 1000);
