@@ -43,7 +43,7 @@ def test_help_works_for_every_subcommand(command: list[str]) -> None:
     assert result.stdout.startswith("usage: openptrack")
 
 
-@pytest.mark.parametrize("node", ["sim", "record", "tracker"])
+@pytest.mark.parametrize("node", ["sim", "record", "tracker", "output"])
 def test_every_node_has_help(node: str) -> None:
     assert node in available_nodes()
     result = _cli("node", node, "--help")
@@ -56,7 +56,9 @@ def test_every_node_has_help(node: str) -> None:
 def test_unknown_node_lists_the_available_ones() -> None:
     result = _cli("node", "tracker-of-dreams")
     assert result.returncode == 2
-    assert "unknown node 'tracker-of-dreams' (available: record, sim, tracker)" in result.stderr
+    assert "unknown node 'tracker-of-dreams' (available: output, record, sim, tracker)" in (
+        result.stderr
+    )
 
 
 def test_show_config_fills_defaults_and_applies_overrides() -> None:
@@ -152,11 +154,14 @@ def test_installed_wheel_has_the_command_every_node_and_the_presets(tmp_path: Pa
     assert all(line.startswith(str(target)) for line in where.stdout.splitlines())
     script = target / "bin" / "openptrack"
     assert script.exists()
-    for args in (["--help"], *(["node", n, "--help"] for n in ("sim", "record", "tracker"))):
+    nodes = ("sim", "record", "tracker", "output")
+    for args in (["--help"], *(["node", n, "--help"] for n in nodes)):
         result = _run(str(script), *args, cwd=outside, env=env)
         assert result.returncode == 0, result.stderr
     shown = _run(str(script), "show-config", "demo", cwd=outside, env=env)
     assert shown.returncode == 0 and "k2_c" in shown.stdout, shown.stderr
+    for page in ("index.html", "view.js"):  # the web view ships inside the package
+        assert (target / "openptrack_py" / "output" / "web" / page).is_file()
 
 
 def test_core_tracking_never_imports_open3d() -> None:

@@ -20,10 +20,9 @@ order before the tracker sees them:
 from __future__ import annotations
 
 import bisect
+import statistics
 from collections import deque
 from dataclasses import dataclass, field, replace
-
-import numpy as np
 
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.track import TrackBatch
@@ -66,7 +65,7 @@ class ClockAligner:
         """Seconds to add to this sensor's stamps."""
         if sensor_id not in self._sensors:
             return 0.0
-        reference = float(np.median([c.offset for c in self._sensors.values()]))
+        reference = statistics.median(c.offset for c in self._sensors.values())
         return self._sensors[sensor_id].offset - reference
 
     def corrections(self) -> dict[str, float]:

@@ -6,6 +6,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# Q = q * (dt^3/3 * _Q_TERMS[0] + dt^2/2 * _Q_TERMS[1] + dt * _Q_TERMS[2])
+_Q_TERMS = np.zeros((3, 4, 4))
+for _i in (0, 1):
+    _Q_TERMS[0, _i, _i] = 1.0
+    _Q_TERMS[1, _i, _i + 2] = _Q_TERMS[1, _i + 2, _i] = 1.0
+    _Q_TERMS[2, _i + 2, _i + 2] = 1.0
+
 
 @dataclass(frozen=True)
 class ConstantVelocity:
@@ -53,11 +60,5 @@ class ConstantVelocity:
     def noise(self, dt: np.ndarray) -> np.ndarray:
         """Process noise ``(N, 4, 4)`` for steps ``dt``."""
         dt = np.abs(np.atleast_1d(np.asarray(dt, dtype=float)))
-        q = self.acceleration_variance
-        out = np.zeros((len(dt), 4, 4))
-        a, b, c = q * dt**3 / 3.0, q * dt**2 / 2.0, q * dt
-        for i in (0, 1):
-            out[:, i, i] = a
-            out[:, i, i + 2] = out[:, i + 2, i] = b
-            out[:, i + 2, i + 2] = c
-        return out
+        powers = np.stack([dt**3 / 3.0, dt**2 / 2.0, dt], axis=1)  # (N, 3)
+        return self.acceleration_variance * np.einsum("nk,kij->nij", powers, _Q_TERMS)
