@@ -13,6 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks import (
     bench_codec,
+    bench_end_to_end,
     bench_sim,
     bench_stonesoup,
     bench_tracker_cost,
@@ -26,6 +27,7 @@ def main() -> None:
         "machine": machine(),
         "codec": bench_codec.main(),
         "zenoh_latency": bench_zenoh_latency.main(),
+        "end_to_end": bench_end_to_end.main(),
         "simulator": bench_sim.main(),
         "tracker_cost": bench_tracker_cost.main(),
         "stonesoup": bench_stonesoup.main(),
