@@ -55,7 +55,9 @@ CHROMIUM_FLAGS = (
     "--window-size=1000,800",
     "--remote-debugging-pipe",
 )
-TRACK_KEYS = {"id", "x", "y", "z", "height", "vx", "vy", "age", "confidence", "visibility"}
+TRACK_KEYS = {
+    "id", "x", "y", "z", "height", "vx", "vy", "age", "confidence", "visibility", "confirmed",
+}  # fmt: skip
 FRAME_KEYS = {"type", "seq", "stamp", "tracks", "alive_ids", "max_id"}
 SENSOR_KEYS = {"id", "type", "x", "y", "z", "yaw_deg", "pitch_deg", "hfov_deg", "range_m"}
 

@@ -7,7 +7,7 @@
 // The stream (ws://host:8080/ws, the output node's `web` sink) sends JSON text:
 //   once:        {"type": "scene", "site", "room": [x0, y0, x1, y1], "sensors": [...]}
 //   every frame: {"type": "tracks", "seq", "stamp", "tracks": [{"id", "x", "y", "z",
-//                 "height", "vx", "vy", "age", "confidence", "visibility"}],
+//                 "height", "vx", "vy", "age", "confidence", "visibility", "confirmed"}],
 //                 "alive_ids", "max_id"}
 (function (root, factory) {
   const api = factory();

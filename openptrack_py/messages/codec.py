@@ -302,7 +302,14 @@ _HEARTBEAT_KEYS = frozenset({"v", "kind", "stamp", "seq", "alive_ids", "max_id"}
 _MAX_ID = (1 << 31) - 1  # OpenPTrack clients read ids as int32
 
 
-def _track_dict(t: Track) -> dict[str, Any]:
+def track_dict(t: Track) -> dict[str, Any]:
+    """A track as the JSON object used on the wire (optional fields only when set).
+
+    Raises
+    ------
+    WireFormatError
+        If a number is NaN or infinite.
+    """
     _check_finite(
         "track",
         (t.x, t.y, t.z, t.height, t.vx, t.vy, t.age, t.confidence),
@@ -344,7 +351,7 @@ def encode_track_batch(batch: TrackBatch) -> bytes:
             "stamp": batch.stamp,
             "seq": batch.seq,
             "frame_id": batch.frame_id,
-            "tracks": [_track_dict(t) for t in batch.tracks],
+            "tracks": [track_dict(t) for t in batch.tracks],
             "alive_ids": list(batch.alive_ids),
             "max_id": batch.max_id,
         }

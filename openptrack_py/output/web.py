@@ -9,7 +9,9 @@ messages, which any browser sketch (p5.js...) can read:
   "sensors": [{"id", "type", "x", "y", "z", "yaw_deg", "pitch_deg", "hfov_deg",
   "range_m"}]}``;
 * every frame: ``{"type": "tracks", "seq", "stamp", "tracks": [{"id", "x", "y", "z",
-  "height", "vx", "vy", "age", "confidence", "visibility"}], "alive_ids", "max_id"}``.
+  "height", "vx", "vy", "age", "confidence", "visibility", "confirmed"}], "alive_ids",
+  "max_id"}``; tracks with a stable identity also carry ``stable_id`` and ``identity``
+  (the same track objects as on ``opt/<site>/tracks``).
 
 Each client has a queue of ``max_queue`` frames; a client that falls that far behind is
 disconnected (close code 1013, "try again later") rather than buffered without bound,
@@ -28,6 +30,7 @@ import orjson
 
 from openptrack_py.config import NetworkConfig, WebConfig
 from openptrack_py.errors import ConfigError
+from openptrack_py.messages.codec import track_dict
 from openptrack_py.messages.track import TrackBatch
 from openptrack_py.runtime.counters import Counters
 
@@ -85,21 +88,7 @@ def frame_message(frame: TrackBatch) -> bytes:
             "type": "tracks",
             "seq": frame.seq,
             "stamp": frame.stamp,
-            "tracks": [
-                {
-                    "id": t.id,
-                    "x": t.x,
-                    "y": t.y,
-                    "z": t.z,
-                    "height": t.height,
-                    "vx": t.vx,
-                    "vy": t.vy,
-                    "age": t.age,
-                    "confidence": t.confidence,
-                    "visibility": int(t.visibility),
-                }
-                for t in frame.tracks
-            ],
+            "tracks": [track_dict(t) for t in frame.tracks],
             "alive_ids": list(frame.alive_ids),
             "max_id": frame.max_id,
         }
