@@ -231,9 +231,11 @@ class SimConfig(StrictModel):
         Stop after this much simulated time (forever if omitted).
     speed : float
         Playback speed relative to real time.
-    sensor_model : {"detections"}
+    sensor_model : {"detections", "rgbd"}
         Level of sensor simulation: ``detections`` draws detections directly from the
-        ground truth through each sensor's field of view, occlusion and noise model.
+        ground truth through each sensor's field of view, occlusion and noise model;
+        ``rgbd`` renders each sensor's depth and colour images and runs the real
+        detector on them (one ``detector`` node per simulated sensor).
     ground_truth_rate_hz : float
         Rate of ground-truth frames on ``opt/<site>/ground_truth``.
     use_scenario_sensors : bool
@@ -245,9 +247,180 @@ class SimConfig(StrictModel):
     seed: int = Field(0, ge=0, le=2**32 - 1)
     duration_s: float | None = Field(None, gt=0.0)
     speed: float = Field(1.0, gt=0.0, le=100.0)
-    sensor_model: Literal["detections"] = "detections"
+    sensor_model: Literal["detections", "rgbd"] = "detections"
     ground_truth_rate_hz: float = Field(30.0, gt=0.0, le=240.0)
     use_scenario_sensors: bool = False
+
+
+HEIGHT_PRESETS: dict[str, tuple[float, float, float]] = {
+    "adult": (1.0, 2.3, 1.3),
+    "child": (0.5, 1.2, 0.7),
+}
+"""Per preset: height band of the points clustered (min, max) and the lowest blob top."""
+
+
+class GroundConfig(StrictModel):
+    """How a detector finds the floor.
+
+    Parameters
+    ----------
+    mode : {"auto", "calibration", "both"}
+        ``auto``: RANSAC planes in the cloud, the lowest near-horizontal one; ``calibration``:
+        the world's floor through the sensor's pose (or ``plane``); ``both``: estimate, and
+        keep the estimate only while it agrees with calibration (OpenPTrack's rule).
+    plane : tuple of float, optional
+        A fixed plane ``a, b, c, d`` (``a*x + b*y + c*z + d = 0``) in the optical frame.
+    lock : bool
+        Keep the first plane found; otherwise it is refined by least squares every frame.
+    expected_tilt_deg : float, optional
+        Rough downward tilt of the sensor; from its pose when it has one, else unknown.
+    angle_allowance_deg : float
+        How far the floor's normal may be from the expected up direction (seed 001 Eq. 1);
+        with the tilt unknown the allowance is at least 45 degrees.
+    inlier_m : float
+        RANSAC inlier distance.
+    max_angle_diff_deg, max_offset_diff_m : float
+        ``both``: agreement needed between estimated and calibrated planes.
+    refine_rate : float
+        Weight of each frame's least-squares fit when refining.
+    """
+
+    mode: Literal["auto", "calibration", "both"] = "both"
+    plane: tuple[float, float, float, float] | None = None
+    lock: bool = False
+    expected_tilt_deg: float | None = Field(None, ge=-90.0, le=90.0)
+    angle_allowance_deg: float = Field(20.0, gt=0.0, le=89.0)
+    inlier_m: float = Field(0.03, gt=0.0, le=0.5)
+    max_angle_diff_deg: float = Field(5.0, gt=0.0, le=90.0)
+    max_offset_diff_m: float = Field(0.15, gt=0.0, le=5.0)
+    refine_rate: float = Field(0.2, ge=0.0, le=1.0)
+
+
+class BackgroundConfig(StrictModel):
+    """Optional background learning and removal.
+
+    Parameters
+    ----------
+    enabled : bool
+        Learn the static scene, then drop points that fall in it.
+    seconds : float
+        Learning time at start-up.
+    resolution_m : float
+        Voxel size of the occupancy set.
+    """
+
+    enabled: bool = False
+    seconds: float = Field(3.0, gt=0.0, le=600.0)
+    resolution_m: float = Field(0.1, gt=0.0, le=1.0)
+
+
+class HogConfig(StrictModel):
+    """Optional HOG person check on the image at each blob's box.
+
+    Parameters
+    ----------
+    enabled : bool
+        Run the check.
+    image : {"auto", "color", "ir"}
+        Image to check: ``auto`` uses infrared on time-of-flight sensors (Kinect v2,
+        SR4500) and colour otherwise.
+    min_luminance : float
+        Colour checks are skipped when the image's mean luminance (0-255) is below this.
+    min_margin : float
+        Blobs whose SVM margin is below this are dropped.
+    weight : float
+        Share of the HOG score in the confidence.
+    """
+
+    enabled: bool = False
+    image: Literal["auto", "color", "ir"] = "auto"
+    min_luminance: float = Field(20.0, ge=0.0, le=255.0)
+    min_margin: float = Field(-1.5, ge=-20.0, le=20.0)
+    weight: float = Field(0.5, ge=0.0, le=1.0)
+
+
+class DetectorConfig(StrictModel):
+    """The people detector that runs on each sensor's frames.
+
+    Parameters
+    ----------
+    preset : {"adult", "child"}
+        Fills the height band: adult 1.0-2.3 m (blob top >= 1.3 m), child 0.5-1.2 m
+        (top >= 0.7 m, seed 000).
+    min_height_m, max_height_m : float, optional
+        Height band above the floor whose points are clustered (preset if omitted).
+    min_top_m : float, optional
+        A blob's highest point must be at least this high (preset if omitted).
+    sampling_factor : int
+        Use every n-th pixel in each image direction.
+    max_distance_m : float
+        Points farther than this along the optical axis are ignored.
+    voxel_size_m : float
+        Cell of the floor grid the band is projected onto (and of down-sampling).
+    min_points : int
+        Fewest points of a detection.
+    heads_minimum_distance_m : float
+        Heads closer than this belong to one person; farther, a blob is split.
+    min_size_m, max_size_m : float
+        Width and length limits of a person's footprint (seed 001 Eq. 3).
+    min_area_m2, max_area_m2 : float
+        Area limits of a person's footprint.
+    surface_offset_m : float
+        The visible surface is nearer than the body's centre: positions are pushed this
+        far along the viewing ray.
+    appearance_bins : int
+        Hue bins of the appearance signature.
+    rate_hz : float, optional
+        Frames per second to process (the sensor's rate if omitted); older frames are
+        dropped when the detector falls behind.
+    ground, background, hog
+        Sub-sections.
+    """
+
+    preset: Literal["adult", "child"] = "adult"
+    min_height_m: float | None = Field(None, ge=0.0, le=3.0)
+    max_height_m: float | None = Field(None, gt=0.0, le=4.0)
+    min_top_m: float | None = Field(None, ge=0.0, le=4.0)
+    sampling_factor: int = Field(2, ge=1, le=16)
+    max_distance_m: float = Field(10.0, gt=0.0, le=50.0)
+    voxel_size_m: float = Field(0.06, ge=0.01, le=0.5)
+    min_points: int = Field(20, ge=1, le=100_000)
+    heads_minimum_distance_m: float = Field(0.3, gt=0.0, le=2.0)
+    min_size_m: float = Field(0.06, ge=0.0, le=5.0)
+    max_size_m: float = Field(1.0, gt=0.0, le=10.0)
+    min_area_m2: float = Field(0.008, ge=0.0, le=10.0)
+    max_area_m2: float = Field(0.8, gt=0.0, le=50.0)
+    surface_offset_m: float = Field(0.06, ge=0.0, le=0.5)
+    appearance_bins: int = Field(16, ge=4, le=64)
+    rate_hz: float | None = Field(None, gt=0.0, le=120.0)
+    ground: GroundConfig = Field(default_factory=GroundConfig)
+    background: BackgroundConfig = Field(default_factory=BackgroundConfig)
+    hog: HogConfig = Field(default_factory=HogConfig)
+
+    @model_validator(mode="after")
+    def _band(self) -> DetectorConfig:
+        if self.band[0] >= self.band[1]:
+            raise ValueError(
+                f"min_height_m must be below max_height_m (received {self.band[0]} >= "
+                f"{self.band[1]})"
+            )
+        if self.min_size_m >= self.max_size_m or self.min_area_m2 >= self.max_area_m2:
+            raise ValueError("size limits: each minimum must be below its maximum")
+        return self
+
+    @property
+    def band(self) -> tuple[float, float]:
+        """Height band ``(min, max)`` in metres, after the preset."""
+        low, high, _ = HEIGHT_PRESETS[self.preset]
+        return (
+            low if self.min_height_m is None else self.min_height_m,
+            high if self.max_height_m is None else self.max_height_m,
+        )
+
+    @property
+    def top_minimum(self) -> float:
+        """Lowest allowed blob top in metres, after the preset."""
+        return HEIGHT_PRESETS[self.preset][2] if self.min_top_m is None else self.min_top_m
 
 
 class TrackerConfig(StrictModel):
@@ -546,6 +719,8 @@ class NetworkConfig(StrictModel):
         Output nodes; names must be unique.
     recorder : RecorderConfig, optional
         Present to record the run.
+    detector : DetectorConfig
+        Settings of every detector node (sensor machines, and ``rgbd`` simulation).
     stats_interval_s : float
         How often every node publishes its counters.
     """
@@ -557,6 +732,7 @@ class NetworkConfig(StrictModel):
     tracker: TrackerConfig | None = None
     outputs: list[OutputConfig] = Field(default_factory=list)
     recorder: RecorderConfig | None = None
+    detector: DetectorConfig = Field(default_factory=DetectorConfig)
     stats_interval_s: float = Field(2.0, gt=0.0, le=3600.0)
 
     @model_validator(mode="after")

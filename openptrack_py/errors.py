@@ -29,3 +29,11 @@ class WireFormatError(OptError, ValueError):
 
 class CalibrationError(OptError):
     """A calibration file or procedure produced an unusable result."""
+
+
+class SourceError(OptError):
+    """A depth source cannot be opened or read.
+
+    The message names the source (file, folder or device spec), what went wrong and,
+    where it helps, what is accepted (e.g. the source kinds, or the connected devices).
+    """

@@ -12,7 +12,10 @@ import pytest
 from openptrack_py.cli import available_nodes, build_parser
 from tests.conftest import ROOT, python_env
 
-SUBCOMMANDS = ["launch", "node", "status", "echo", "config", "eval", "scenarios", "show-config"]
+SUBCOMMANDS = [
+    "launch", "node", "status", "echo", "config", "eval", "scenarios", "show-config",
+    "record-sensor",
+]  # fmt: skip
 
 
 def _run(*args: str, cwd: Path = ROOT, env: dict[str, str] | None = None, timeout: float = 120):

@@ -93,7 +93,7 @@ def test_no_file_gives_defaults() -> None:
         (
             "sensros=[]",
             "sensros: unknown key; did you mean 'sensors'? "
-            "(allowed: outputs, recorder, sensors, sim, site, stats_interval_s, tracker, zenoh)",
+            "(allowed: detector, outputs, recorder, sensors, sim, site, stats_interval_s, tracker, zenoh)",
         ),
         (
             "sim.sceanrio=crowd",

@@ -1,0 +1,297 @@
+"""People blobs on the floor: height-band points projected onto a grid, split at heads.
+
+The points of the height band (in a floor-aligned frame, ``z`` = height above the floor)
+fall into square cells of the floor. Occupied cells that touch (8-neighbourhood, with a
+one-cell tolerance for sparse far-away returns) form connected components, as the
+connected-component labelling of seed 000 §2.1. Inside a component every local maximum of
+the height map that reaches ``min_top_m`` is a head candidate; candidates closer than
+``heads_minimum_distance_m`` belong to one head (the taller wins), so that people
+standing shoulder to shoulder become separate blobs while a person's shoulders do not.
+Each cell goes to its nearest head. A blob survives if it has enough points and its
+footprint's width, length and area lie within the limits (seed 001 Eq. 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+
+@dataclass(frozen=True, slots=True)
+class Blobs:
+    """The blobs of one frame, as per-point labels and per-blob summaries.
+
+    Parameters
+    ----------
+    labels : ndarray
+        Blob index per input point, -1 for points in no blob.
+    head_xy : ndarray
+        ``(k, 2)`` mean floor position of each blob's head points.
+    centroid_xy : ndarray
+        ``(k, 2)`` mean floor position of each blob's points.
+    top : ndarray
+        Highest point of each blob above the floor.
+    points : ndarray
+        Point count per blob.
+    width, length, area : ndarray
+        Footprint extents (metres) and area (square metres) per blob.
+    """
+
+    labels: np.ndarray
+    head_xy: np.ndarray
+    centroid_xy: np.ndarray
+    top: np.ndarray
+    points: np.ndarray
+    width: np.ndarray
+    length: np.ndarray
+    area: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.top)
+
+
+def _empty(n: int) -> Blobs:
+    z = np.zeros(0)
+    return Blobs(np.full(n, -1, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 2)), z, z, z, z, z)
+
+
+class HeadClusterer:
+    """Clusters floor-frame points into person blobs.
+
+    Parameters
+    ----------
+    cell_m : float
+        Grid cell size.
+    heads_minimum_distance_m : float
+        Heads closer than this are one person.
+    min_top_m : float
+        A head must be at least this high.
+    max_height_m : float
+        Top of the height band: blobs that reach it and continue above are not people.
+    min_points : int
+        Fewest points of a blob.
+    min_size_m, max_size_m : float
+        Footprint width and length limits.
+    min_area_m2, max_area_m2 : float
+        Footprint area limits.
+    """
+
+    HEAD_DROP_M = 0.1
+    """Around a head, most of the ring must lie at least this much lower."""
+    PROMINENCE_M = 0.1
+    """Between two people's heads the height map dips at least this much."""
+
+    def __init__(
+        self,
+        *,
+        cell_m: float = 0.06,
+        heads_minimum_distance_m: float = 0.3,
+        min_top_m: float = 1.3,
+        max_height_m: float = 2.3,
+        min_points: int = 20,
+        min_size_m: float = 0.06,
+        max_size_m: float = 1.0,
+        min_area_m2: float = 0.008,
+        max_area_m2: float = 0.8,
+    ) -> None:
+        self.cell_m = cell_m
+        self.heads_minimum_distance_m = heads_minimum_distance_m
+        self.min_top_m = min_top_m
+        self.max_height_m = max_height_m
+        self.min_points = min_points
+        self.min_size_m = min_size_m
+        self.max_size_m = max_size_m
+        self.min_area_m2 = min_area_m2
+        self.max_area_m2 = max_area_m2
+        # Local-maximum window: about half the head spacing on each side.
+        half = max(1, round(0.5 * heads_minimum_distance_m / cell_m))
+        self._window = 2 * half + 1
+
+    MAX_TALL_SHARE = 0.2
+    """Blobs with more of their cells than this under something above the band are dropped."""
+
+    def cluster(self, xyz: np.ndarray, above_xy: np.ndarray | None = None) -> Blobs:
+        """Blobs of ``(n, 3)`` points ``(x, y, height)`` in a floor-aligned frame.
+
+        ``above_xy`` are the floor positions of points just above the band: a blob that
+        reaches the top of the band and continues above it (a wall, a tall cabinet) is
+        not a person.
+        """
+        n = len(xyz)
+        if n < self.min_points:
+            return _empty(n)
+        cell = self.cell_m
+        lo = xyz[:, :2].min(axis=0) - cell
+        ij = ((xyz[:, :2] - lo) / cell).astype(np.int64)
+        rows, cols = int(ij[:, 0].max()) + 2, int(ij[:, 1].max()) + 2
+        lin = ij[:, 0] * cols + ij[:, 1]
+        h = xyz[:, 2]
+        order = np.argsort(h, kind="stable")
+        top = np.full(rows * cols, -np.inf)
+        top[lin[order]] = h[order]  # last write wins: the highest point of each cell
+        top = top.reshape(rows, cols)
+        occupied = np.isfinite(top)
+        components, count = ndimage.label(
+            ndimage.binary_dilation(occupied, np.ones((3, 3), bool)), np.ones((3, 3), int)
+        )
+        components[~occupied] = 0
+        if count == 0:
+            return _empty(n)
+        peaks = occupied & (top >= self.min_top_m)
+        peaks &= top == ndimage.maximum_filter(
+            top, size=self._window, mode="constant", cval=-np.inf
+        )
+        cell_blob = self._assign_heads(top, components, peaks)
+        if above_xy is not None and len(above_xy):
+            aij = ((above_xy - lo) / cell).astype(np.int64)
+            inside = (aij >= 0).all(axis=1) & (aij[:, 0] < rows) & (aij[:, 1] < cols)
+            tall = np.zeros((rows, cols), dtype=bool)
+            tall[aij[inside, 0], aij[inside, 1]] = True
+            k = int(cell_blob.max()) + 1
+            if k > 0:
+                cells = np.bincount(cell_blob[cell_blob >= 0], minlength=k)
+                under = np.bincount(cell_blob[tall & (cell_blob >= 0)], minlength=k)
+                blob_top = np.full(k, -np.inf)
+                np.maximum.at(blob_top, cell_blob[cell_blob >= 0], top[cell_blob >= 0])
+                cut = blob_top >= self.max_height_m - 0.1  # reaches the top of the band
+                drop = cut & (under > self.MAX_TALL_SHARE * np.maximum(cells, 1))
+                cell_blob[np.isin(cell_blob, np.flatnonzero(drop))] = -1
+        point_blob = cell_blob.ravel()[lin]
+        return self._summarise(xyz, point_blob, cell_blob)
+
+    def _assign_heads(
+        self, top: np.ndarray, components: np.ndarray, peaks: np.ndarray
+    ) -> np.ndarray:
+        """Blob index per cell (-1 for none): each component split among its heads."""
+        cell = self.cell_m
+        pi, pj = np.nonzero(peaks)
+        out = np.full(top.shape, -1, dtype=np.int64)
+        if len(pi) == 0:
+            return out
+        comp = components[pi, pj]
+        height = top[pi, pj]
+        # Greedy head selection within each component, tallest first.
+        order = np.lexsort((-height, comp))
+        pi, pj, comp, height = pi[order], pj[order], comp[order], height[order]
+        heads: list[tuple[int, float, float]] = []  # (component, i, j)
+        # single-cell holes of sparse far returns are not dips
+        filled = ndimage.maximum_filter(top, size=3, mode="constant", cval=-np.inf)
+        min_d2 = (self.heads_minimum_distance_m / cell) ** 2
+        start = 0
+        for end in np.append(np.flatnonzero(np.diff(comp)) + 1, len(comp)):
+            kept: list[tuple[int, int]] = []
+            for k in range(start, end):
+                i, j = int(pi[k]), int(pj[k])
+                if all(
+                    (i - a) ** 2 + (j - b) ** 2 >= min_d2 and self._dips(filled, (a, b), (i, j))
+                    for a, b in kept
+                ):
+                    kept.append((i, j))
+            heads.extend((int(comp[start]), a, b) for a, b in kept)
+            start = end
+        head_comp = np.array([c for c, _, _ in heads])
+        head_ij = np.array([(a, b) for _, a, b in heads], dtype=float)
+        rounded = np.array([self._is_head(top, int(a), int(b)) for _, a, b in heads])
+        ci, cj = np.nonzero(components > 0)
+        cc = components[ci, cj]
+        # Nearest head of the same component for every cell.
+        d2 = (ci[:, None] - head_ij[None, :, 0]) ** 2 + (cj[:, None] - head_ij[None, :, 1]) ** 2
+        d2[cc[:, None] != head_comp[None, :]] = np.inf
+        best = np.argmin(d2, axis=1)
+        has = np.isfinite(d2[np.arange(len(ci)), best]) & rounded[best]
+        out[ci[has], cj[has]] = best[has]
+        return out
+
+    def _dips(self, top: np.ndarray, head: tuple[int, int], other: tuple[int, int]) -> bool:
+        """Whether the height map dips between a head and a lower peak (two people).
+
+        A shoulder or a raised arm rises towards its own head without a dip; between two
+        people the surface drops at least :attr:`PROMINENCE_M` below the lower peak.
+        Peaks farther apart than twice the head distance are always separate.
+        """
+        di, dj = other[0] - head[0], other[1] - head[1]
+        if (di * di + dj * dj) * self.cell_m**2 > (2 * self.heads_minimum_distance_m) ** 2:
+            return True
+        steps = max(abs(di), abs(dj)) + 1
+        f = np.linspace(0.0, 1.0, steps + 1)[1:-1]
+        ii = np.rint(head[0] + f * di).astype(int)
+        jj = np.rint(head[1] + f * dj).astype(int)
+        saddle = top[ii, jj].min() if len(ii) else np.inf
+        return bool(saddle < top[other] - self.PROMINENCE_M)
+
+    def _is_head(self, top: np.ndarray, i: int, j: int) -> bool:
+        """Whether a height peak is rounded like a head rather than a flat top.
+
+        Walls and furniture cut by the band are plateaus: most of the ring 0.15-0.3 m
+        around the peak is as high as the peak. Around a head, shoulders and the rest
+        of the body are lower (cells of other, taller things do not count).
+        """
+        r1 = 0.5 * self.heads_minimum_distance_m / self.cell_m
+        r2 = self.heads_minimum_distance_m / self.cell_m
+        span = int(np.ceil(r2))
+        i0, j0 = max(i - span, 0), max(j - span, 0)
+        window = top[i0 : i + span + 1, j0 : j + span + 1]
+        di = np.arange(i0, i0 + window.shape[0])[:, None] - i
+        dj = np.arange(j0, j0 + window.shape[1])[None, :] - j
+        d2 = di * di + dj * dj
+        ring = (d2 >= r1 * r1) & (d2 <= r2 * r2) & np.isfinite(window)
+        peak = top[i, j]
+        ring &= window <= peak + 1e-6
+        if not ring.any():
+            return True  # a head alone (the rest hidden)
+        level = window[ring] >= peak - self.HEAD_DROP_M
+        return bool(level.mean() < 0.5)
+
+    def _summarise(self, xyz: np.ndarray, point_blob: np.ndarray, cell_blob: np.ndarray) -> Blobs:
+        """Per-blob statistics, then the size tests; blobs renumbered from 0."""
+        k = int(cell_blob.max()) + 1 if cell_blob.size else 0
+        if k == 0:
+            return _empty(len(xyz))
+        member = point_blob >= 0
+        b = point_blob[member]
+        x, y, h = xyz[member, 0], xyz[member, 1], xyz[member, 2]
+        count = np.bincount(b, minlength=k).astype(float)
+        safe = np.maximum(count, 1.0)
+        mx, my = np.bincount(b, x, k) / safe, np.bincount(b, y, k) / safe
+        top = np.full(k, -np.inf)
+        np.maximum.at(top, b, h)
+        top[count == 0] = 0.0
+        head_band = 0.12 * top + 0.02
+        in_head = h >= (top - head_band)[b]
+        head_n = np.maximum(np.bincount(b[in_head], minlength=k), 1)
+        hx = np.bincount(b[in_head], x[in_head], k) / head_n
+        hy = np.bincount(b[in_head], y[in_head], k) / head_n
+        dx, dy = x - mx[b], y - my[b]
+        sxx = np.bincount(b, dx * dx, k) / safe
+        syy = np.bincount(b, dy * dy, k) / safe
+        sxy = np.bincount(b, dx * dy, k) / safe
+        mean = (sxx + syy) / 2
+        spread = np.sqrt(((sxx - syy) / 2) ** 2 + sxy**2)
+        # extent of a uniform spread with this variance, plus one cell
+        length = np.sqrt(12 * np.maximum(mean + spread, 0)) + self.cell_m
+        width = np.sqrt(12 * np.maximum(mean - spread, 0)) + self.cell_m
+        area = np.bincount(cell_blob[cell_blob >= 0], minlength=k) * self.cell_m**2
+        keep = (
+            (count >= self.min_points)
+            & (top >= self.min_top_m)
+            & (width >= self.min_size_m)
+            & (length <= self.max_size_m)
+            & (area >= self.min_area_m2)
+            & (area <= self.max_area_m2)
+        )
+        renumber = np.full(k, -1, dtype=np.int64)
+        renumber[keep] = np.arange(int(keep.sum()))
+        labels = np.full(len(xyz), -1, dtype=np.int64)
+        labels[member] = renumber[b]
+        return Blobs(
+            labels=labels,
+            head_xy=np.column_stack([hx, hy])[keep],
+            centroid_xy=np.column_stack([mx, my])[keep],
+            top=top[keep],
+            points=count[keep],
+            width=width[keep],
+            length=length[keep],
+            area=area[keep],
+        )

@@ -1,0 +1,182 @@
+"""What a depth source yields: a timestamped frame with its camera intrinsics.
+
+Every source (rendered simulation, a folder of PNGs, a RealSense recording, a live device,
+a point-cloud file) produces :class:`Frame` objects in the camera's **optical frame**:
+x right, y down, z forward along the optical axis, metres. Depth images are organised
+(``height x width``); clouds read from files may be unorganised, in which case the frame
+carries ``points`` instead of ``depth``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from openptrack_py.errors import ConfigError
+
+# (width, height, horizontal fov, vertical fov) of each sensor type's depth image.
+_SENSOR_IMAGES: dict[str, tuple[int, int, float, float]] = {
+    "kinect1": (320, 240, 57.0, 43.0),
+    "kinect2": (512, 424, 70.6, 60.0),
+    "realsense": (640, 480, 87.0, 58.0),
+    "sr4500": (176, 144, 69.0, 55.0),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Intrinsics:
+    """Pinhole intrinsics of a depth image (colour images are registered to it).
+
+    Parameters
+    ----------
+    width, height : int
+        Image size, pixels.
+    fx, fy : float
+        Focal lengths, pixels.
+    cx, cy : float
+        Principal point, pixels.
+    """
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    def __post_init__(self) -> None:
+        if self.width < 1 or self.height < 1:
+            raise ConfigError(
+                f"intrinsics: width and height must be >= 1 (received {self.width}x{self.height})"
+            )
+        for name in ("fx", "fy"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(
+                    f"intrinsics.{name}: must be a positive number (received {value})"
+                )
+        for name in ("cx", "cy"):
+            if not math.isfinite(getattr(self, name)):
+                raise ConfigError(f"intrinsics.{name}: must be finite")
+
+    @classmethod
+    def for_sensor(cls, sensor_type: str) -> Intrinsics:
+        """Nominal intrinsics of a sensor type: kinect1, kinect2, realsense or sr4500.
+
+        Raises
+        ------
+        ConfigError
+            For an unknown type.
+        """
+        if sensor_type not in _SENSOR_IMAGES:
+            raise ConfigError(
+                f"sensor type: unknown {sensor_type!r} (allowed: {', '.join(_SENSOR_IMAGES)})"
+            )
+        width, height, hfov, vfov = _SENSOR_IMAGES[sensor_type]
+        fx = (width / 2) / math.tan(math.radians(hfov) / 2)
+        fy = (height / 2) / math.tan(math.radians(vfov) / 2)
+        return cls(width, height, fx, fy, (width - 1) / 2, (height - 1) / 2)
+
+    @classmethod
+    def from_matrix(cls, k: np.ndarray, width: int, height: int) -> Intrinsics:
+        """From a 3x3 camera matrix."""
+        k = np.asarray(k, dtype=float).reshape(3, 3)
+        return cls(
+            int(width), int(height), float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])
+        )
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 3x3 camera matrix."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    def scaled(self, width: int, height: int) -> Intrinsics:
+        """The same camera at another image size."""
+        sx, sy = width / self.width, height / self.height
+        return Intrinsics(
+            width,
+            height,
+            self.fx * sx,
+            self.fy * sy,
+            (self.cx + 0.5) * sx - 0.5,
+            (self.cy + 0.5) * sy - 0.5,
+        )
+
+    def to_dict(self) -> dict[str, float | int]:
+        """Plain dict (for ``intrinsics.json``)."""
+        return {
+            "width": self.width,
+            "height": self.height,
+            "fx": self.fx,
+            "fy": self.fy,
+            "cx": self.cx,
+            "cy": self.cy,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Intrinsics:
+        """Inverse of :meth:`to_dict`.
+
+        Raises
+        ------
+        ConfigError
+            Naming a missing or invalid key.
+        """
+        try:
+            return cls(
+                int(data["width"]),
+                int(data["height"]),
+                float(data["fx"]),
+                float(data["fy"]),
+                float(data["cx"]),
+                float(data["cy"]),
+            )
+        except KeyError as exc:
+            raise ConfigError(
+                f"intrinsics: missing key {exc.args[0]!r} (need width, height, fx, fy, cx, cy)"
+            ) from None
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"intrinsics: {exc}") from None
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Frame:
+    """One capture of a depth sensor.
+
+    Parameters
+    ----------
+    stamp : float
+        Capture time, UNIX seconds (or seconds from the recording's start).
+    seq : int
+        Frame counter of the source.
+    intrinsics : Intrinsics or None
+        Camera model; ``None`` only for unorganised clouds.
+    depth : ndarray or None
+        ``(height, width)`` float32 depth in metres along the optical axis; NaN where
+        invalid. Sources convert zeros and out-of-range codes to NaN.
+    color : ndarray or None
+        ``(height, width, 3)`` uint8 RGB registered to the depth image.
+    intensity : ndarray or None
+        ``(height, width)`` infrared (or amplitude) image, uint8 or uint16.
+    points : ndarray or None
+        ``(n, 3)`` float32 optical-frame points of an unorganised cloud (when ``depth`` is
+        ``None``).
+    point_colors : ndarray or None
+        ``(n, 3)`` uint8 RGB of ``points``.
+    """
+
+    stamp: float
+    seq: int
+    intrinsics: Intrinsics | None
+    depth: np.ndarray | None = None
+    color: np.ndarray | None = None
+    intensity: np.ndarray | None = None
+    points: np.ndarray | None = None
+    point_colors: np.ndarray | None = None
+
+    @property
+    def organised(self) -> bool:
+        """Whether the frame is a depth image (else an unorganised cloud)."""
+        return self.depth is not None
