@@ -1,7 +1,8 @@
 """Simulator node: plays the network file's scenario in real time.
 
 Publishes every simulated sensor's batches on ``opt/<site>/detections/<sensor_id>`` and
-the ground truth on ``opt/<site>/ground_truth``.
+the ground truth on ``opt/<site>/ground_truth``. With ``sim.sensor_model: rgbd`` only the
+ground truth: one ``detector`` node per sensor renders it and runs the real detector.
 
 Typical usage::
 
@@ -26,7 +27,12 @@ def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     assert cfg.sim is not None  # scenario_from_network checks
     scenario = scenario_from_network(cfg)
     player = LivePlayer(
-        scenario, node, speed=cfg.sim.speed, ground_truth_rate_hz=cfg.sim.ground_truth_rate_hz
+        scenario,
+        node,
+        speed=cfg.sim.speed,
+        ground_truth_rate_hz=cfg.sim.ground_truth_rate_hz,
+        publish_detections=cfg.sim.sensor_model == "detections",
+        start_time=cfg.sim.start_time,
     )
     player.run()
 

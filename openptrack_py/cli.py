@@ -11,6 +11,8 @@ Subcommands::
     openptrack scenarios                                     list the simulated scenarios
     openptrack show-config NETWORK                           the validated network file
     openptrack record-sensor SOURCE OUTDIR                   record a depth source to a folder
+    openptrack detect INPUT                                  detect people in depth frames
+    openptrack eval-detector --scenario NAME                 score the detector on renderings
 
 ``openptrack <subcommand> --help`` explains each.
 """
@@ -42,6 +44,8 @@ from openptrack_py.runtime.args import (
 from openptrack_py.runtime.logs import configure_logging
 
 EXIT_CONFIG = 2
+RGBD_START_DELAY_S = 3.0
+"""With ``sim.sensor_model: rgbd``, the shared scenario start this far after launch."""
 
 
 # ------------------------------------------------------------------------ launch
@@ -60,6 +64,9 @@ def _cmd_launch(args: argparse.Namespace) -> int:
     # With the live table, node logs would scroll it away: only warnings get through.
     level = "warning" if args.table and args.log_level == "info" else args.log_level
     passthrough += ["--log-level", level, "--log-format", args.log_format]
+    if cfg.sim is not None and cfg.sim.sensor_model == "rgbd" and cfg.sim.start_time is None:
+        # Rendering detectors and the simulator must play the same world at the same time.
+        passthrough += ["--set", f"sim.start_time={time.time() + RGBD_START_DELAY_S:.3f}"]
     specs = plan_nodes(cfg, host, path.resolve(), passthrough)
     if not specs:
         print(f"openptrack launch: no node of {path} runs on host {host!r}", file=sys.stderr)
@@ -391,6 +398,155 @@ def _cmd_record_sensor(args: argparse.Namespace) -> int:
     return 0
 
 
+# ------------------------------------------------------------------------ detect
+
+
+def _detector_config(args: argparse.Namespace):  # noqa: ANN202 - DetectorConfig
+    from openptrack_py.config import DetectorConfig, load_config
+
+    overrides = list(args.overrides)
+    if args.preset:
+        overrides.append(f"preset={args.preset}")
+    if getattr(args, "ground", None):
+        if args.ground == "auto":
+            overrides.append("ground.mode=auto")
+        else:
+            try:
+                plane = [float(v) for v in args.ground.split(",")]
+            except ValueError:
+                plane = []
+            if len(plane) != 4:
+                raise ConfigError(
+                    f"--ground: expected 'auto' or four numbers a,b,c,d (received {args.ground!r})"
+                )
+            overrides += ["ground.mode=calibration", f"ground.plane=[{','.join(map(str, plane))}]"]
+    return load_config(DetectorConfig, args.detector_config, overrides)
+
+
+def _sim_source_factory(spec: str):  # noqa: ANN202 - Source
+    """``sim:SCENARIO[:SENSOR]``: a scenario's sensor rendered faster than real time."""
+    from openptrack_py.sim.depth_source import SimDepthSource
+    from openptrack_py.sim.scenarios import build_scenario
+    from openptrack_py.sim.simulator import DEFAULT_START_TIME
+
+    _, _, rest = spec.partition(":")
+    name, _, sensor = rest.partition(":")
+    scenario = build_scenario(name or "crowd")
+    sensor = sensor or scenario.sensors[0].id
+    return SimDepthSource(scenario, sensor, start_time=DEFAULT_START_TIME, realtime=False)
+
+
+def _cmd_detect(args: argparse.Namespace) -> int:
+    from openptrack_py.detection.pipeline import PeopleDetector
+    from openptrack_py.detection.sources import open_source
+    from openptrack_py.errors import SourceError
+    from openptrack_py.eval.runner import format_table
+
+    try:
+        config = _detector_config(args)
+        source = open_source(args.input, extra={"sim": _sim_source_factory})
+    except (ConfigError, SourceError) as exc:
+        print(f"openptrack detect: {exc}", file=sys.stderr)
+        return EXIT_CONFIG
+    pose = None
+    spec = getattr(source, "spec", None)
+    if args.pose_from_sim and spec is not None:
+        from openptrack_py.geometry import world_from_optical
+
+        pose = world_from_optical(spec.pose)
+    detector = PeopleDetector(
+        config, world_from_camera=pose, sensor_type=args.sensor_type, frame_id="sensor"
+    )
+    rows = []
+    frames = 0
+    try:
+        for frame in source.frames():
+            result = detector.detect(frame)
+            frames += 1
+            ground = [round(v, 5) for v in result.ground.coefficients] if result.ground else None
+            record = {
+                "frame": frame.seq,
+                "stamp": frame.stamp,
+                "status": result.status,
+                "frame_id": result.frame_id,
+                "ground": ground,
+                "ground_source": result.ground.source if result.ground else None,
+                "detections": [
+                    {
+                        "position": [round(v, 4) for v in d.position],
+                        "sensor_position": [round(v, 4) for v in d.sensor_position],
+                        "height": round(d.height, 4),
+                        "confidence": round(d.confidence, 4),
+                        "distance": round(d.distance, 4),
+                        "bbox": list(d.bbox),
+                        "points": d.points,
+                    }
+                    for d in result.detections
+                ],
+            }
+            if args.format == "json":
+                print(json.dumps(record), flush=True)
+            else:
+                for i, d in enumerate(record["detections"]):
+                    x, y, z = d["position"]
+                    sx, sy, sz = d["sensor_position"]
+                    rows.append(
+                        {
+                            "frame": frame.seq, "n": i, "x": x, "y": y, "z": z,
+                            "sensor_x": sx, "sensor_y": sy, "sensor_z": sz,
+                            "height": d["height"], "conf": d["confidence"],
+                            "frame_id": result.frame_id, "ground": ground,
+                        }
+                    )  # fmt: skip
+            if args.frames is not None and frames >= args.frames:
+                break
+    except SourceError as exc:
+        print(f"openptrack detect: {exc}", file=sys.stderr)
+        return EXIT_CONFIG
+    finally:
+        source.close()
+    if args.format == "table":
+        columns = ["frame", "n", "x", "y", "z", "sensor_x", "sensor_y", "sensor_z", "height"]
+        columns += ["conf", "frame_id", "ground"]
+        print(format_table(rows, columns) if rows else f"no detections in {frames} frame(s)")
+    return 0
+
+
+def _cmd_eval_detector(args: argparse.Namespace) -> int:
+    from openptrack_py.eval.detector import evaluate_detector
+    from openptrack_py.eval.runner import format_table
+
+    try:
+        needed = args.preset or args.overrides or args.detector_config
+        config = _detector_config(args) if needed else None
+    except ConfigError as exc:
+        print(f"openptrack eval-detector: {exc}", file=sys.stderr)
+        return EXIT_CONFIG
+    rows = []
+    for sensor_type in args.sensor_type or ["kinect2"]:
+        for name in args.scenario or ["crowd"]:
+            rows.append(
+                evaluate_detector(
+                    name,
+                    seed=args.seed,
+                    sensor_type=sensor_type,
+                    duration_s=args.duration,
+                    sample_hz=args.sample_rate,
+                    config=config,
+                    match_radius_m=args.match_radius,
+                )
+            )
+    if args.format == "json":
+        print(
+            json.dumps(rows[0] if len(rows) == 1 else rows, indent=None if len(rows) == 1 else 1)
+        )
+    else:
+        columns = ["scenario", "sensor_type", "preset", "recall", "precision", "mean_error_m"]
+        columns += ["p95_error_m", "frames", "expected", "fp", "fn", "detector_ms_p50"]
+        print(format_table(rows, columns))
+    return 0
+
+
 # ------------------------------------------------------------------------ parser
 
 
@@ -524,6 +680,47 @@ def build_parser() -> argparse.ArgumentParser:
         help="stop after S seconds of recording (by the frames' timestamps)",
     )
     p.set_defaults(func=_cmd_record_sensor)
+    p = sub.add_parser(
+        "detect",
+        help="detect people in a cloud file, a folder, a recording or a device",
+        description="Run the people detector on INPUT and print, per frame, the ground plane "
+        "it used and each detection's position (world frame with a pose, else a floor-aligned "
+        "frame under the sensor: x forward, y left, z up), its position in the camera's "
+        "optical frame (x right, y down, z forward), height, confidence and distance. INPUT is "
+        "a .pcd/.ply cloud (organised or not, camera optical frame), a folder (recorded, TUM "
+        "RGB-D, depth PNGs), a RealSense .bag, realsense[:SERIAL], azure-kinect[:N], or "
+        "sim:SCENARIO[:SENSOR] (rendered simulation).",
+    )
+    p.add_argument("input", help="cloud file, folder, .bag, device or sim:SCENARIO[:SENSOR]")
+    p.add_argument("--preset", choices=("adult", "child"), help="height band preset")
+    p.add_argument("--ground", help="'auto' (estimate the floor) or a plane a,b,c,d")
+    p.add_argument("--sensor-type", default=None, help="kinect1|kinect2|realsense|sr4500")
+    p.add_argument("--frames", type=int, metavar="N", help="stop after N frames")
+    p.add_argument("--detector-config", type=Path, help="YAML file of detector settings")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument(
+        "--pose-from-sim", action="store_true", help="sim inputs: report in the world frame"
+    )
+    p.add_argument("--format", choices=("json", "table"), default="table")
+    p.set_defaults(func=_cmd_detect)
+
+    p = sub.add_parser(
+        "eval-detector",
+        help="score the people detector on rendered simulated scenes",
+        description="Render a scenario from each of its sensors, run the detector and print "
+        "recall, precision and mean / p95 floor position error against ground truth.",
+    )
+    p.add_argument("--scenario", action="append", help="scenario name (repeatable)")
+    p.add_argument("--sensor-type", action="append", help="sensor type (repeatable)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
+    p.add_argument("--sample-rate", type=float, default=2.0, help="instants scored per second")
+    p.add_argument("--match-radius", type=float, default=0.3, help="match distance, metres")
+    p.add_argument("--preset", choices=("adult", "child"), help="height band preset")
+    p.add_argument("--detector-config", type=Path, help="YAML file of detector settings")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--format", choices=("json", "table"), default="table")
+    p.set_defaults(func=_cmd_eval_detector)
     return parser
 
 

@@ -192,6 +192,10 @@ class SensorConfig(StrictModel):
         Simulated probability that a whole frame is lost.
     pose_error : PoseError
         Simulated calibration error.
+    input : str, optional
+        Where a ``camera`` or ``recording`` sensor's frames come from, as for
+        ``openptrack detect``: ``realsense[:SERIAL]``, ``azure-kinect[:N]``, a ``.bag``
+        recording, a folder (``openptrack record-sensor`` output, TUM RGB-D) or a cloud.
     """
 
     id: Name
@@ -208,6 +212,7 @@ class SensorConfig(StrictModel):
     clutter_per_frame: float | None = Field(None, ge=0.0, le=50.0)
     frame_drop_probability: float = Field(0.0, ge=0.0, le=1.0)
     pose_error: PoseError = Field(default_factory=PoseError)
+    input: str | None = None
 
     @model_validator(mode="after")
     def _pose_or_calibration(self) -> SensorConfig:
@@ -240,6 +245,9 @@ class SimConfig(StrictModel):
         Rate of ground-truth frames on ``opt/<site>/ground_truth``.
     use_scenario_sensors : bool
         Ignore the network's sensors and use the scenario's own placement.
+    start_time : float, optional
+        UNIX time of the scenario's start, shared by every process that simulates part of
+        it (``openptrack launch`` sets it for ``rgbd``); now if omitted.
     """
 
     host: str = "localhost"
@@ -250,6 +258,7 @@ class SimConfig(StrictModel):
     sensor_model: Literal["detections", "rgbd"] = "detections"
     ground_truth_rate_hz: float = Field(30.0, gt=0.0, le=240.0)
     use_scenario_sensors: bool = False
+    start_time: float | None = Field(None, ge=0.0)
 
 
 HEIGHT_PRESETS: dict[str, tuple[float, float, float]] = {

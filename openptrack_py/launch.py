@@ -94,6 +94,18 @@ def plan_nodes(
     wants_sim = simulated or (cfg.sim is not None and cfg.sim.use_scenario_sensors)
     if cfg.sim is not None and host_matches(cfg.sim.host, host) and (wants_sim or not cfg.sensors):
         specs.append(NodeSpec("sim", "openptrack_py.nodes.sim", common))
+    rgbd = cfg.sim is not None and cfg.sim.sensor_model == "rgbd"
+    for sensor in cfg.sensors:
+        # A detector per real sensor on its own machine, and per rendered sensor on the
+        # simulator's machine.
+        if sensor.source == "sim":
+            runs_here = rgbd and host_matches(cfg.sim.host, host)  # type: ignore[union-attr]
+        else:
+            runs_here = host_matches(sensor.host, host)
+        if runs_here:
+            name = f"detector_{sensor.id}"
+            args = (*common, "--sensor", sensor.id, "--name", name)
+            specs.append(NodeSpec(name, "openptrack_py.nodes.detector", args))
     if cfg.tracker is not None and host_matches(cfg.tracker.host, host):
         specs.append(NodeSpec("tracker", "openptrack_py.nodes.tracker", common))
     for out in cfg.outputs:

@@ -49,6 +49,11 @@ class LivePlayer:
         Playback speed relative to real time.
     ground_truth_rate_hz : float
         Rate of ground-truth messages.
+    publish_detections : bool
+        Publish the detection-level sensor batches; off when detector nodes render the
+        sensors themselves (``sensor_model: rgbd``).
+    start_time : float, optional
+        UNIX time of the scenario's start (shared with rendering detectors); now if omitted.
     """
 
     def __init__(
@@ -58,18 +63,25 @@ class LivePlayer:
         *,
         speed: float = 1.0,
         ground_truth_rate_hz: float = 30.0,
+        publish_detections: bool = True,
+        start_time: float | None = None,
     ) -> None:
         self.scenario = scenario
         self.node = node
         self.speed = speed
         self.ground_truth_rate_hz = ground_truth_rate_hz
+        self.start_time = start_time
         keys = node.keys
-        self._detections = {s.id: node.publisher(keys.detections(s.id)) for s in scenario.sensors}
+        self._detections = (
+            {s.id: node.publisher(keys.detections(s.id)) for s in scenario.sensors}
+            if publish_detections
+            else {}
+        )
         self._truth = node.publisher(keys.ground_truth)
 
     def run(self) -> None:
         """Play until the scenario ends or the node is stopped."""
-        start = time.time() + 0.1
+        start = self.start_time if self.start_time is not None else time.time() + 0.1
         sim = Simulator(
             self.scenario, start_time=start, ground_truth_rate_hz=self.ground_truth_rate_hz
         )
@@ -95,6 +107,8 @@ class LivePlayer:
             if not self.node.running:
                 break
             if isinstance(event, SensorFrame):
+                if not self._detections:
+                    continue
                 self._detections[event.batch.sensor_id].put(encode_detection_batch(event.batch))
                 counters.inc("detections", len(event.batch.detections))
             else:

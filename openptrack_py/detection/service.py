@@ -1,0 +1,156 @@
+"""The detector on a bus: frames from a source in, DetectionBatch out.
+
+:class:`DetectorService` is the body of the ``detector`` node. A grabber thread reads the
+source and keeps only the newest frame: when detection falls behind, older frames are
+dropped (counted as ``frames_dropped``), never queued. The node's loop detects people in
+the newest frame and publishes a DetectionBatch on ``opt/<site>/detections/<sensor_id>``;
+per-stage timings go into the node's stats.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+import numpy as np
+
+from openptrack_py.config import DetectorConfig, NetworkConfig, SensorConfig
+from openptrack_py.detection.frame import Frame
+from openptrack_py.detection.pipeline import PeopleDetector
+from openptrack_py.detection.sources import Source, open_source
+from openptrack_py.errors import ConfigError, SourceError
+from openptrack_py.geometry import world_from_optical
+from openptrack_py.messages.codec import encode_detection_batch
+from openptrack_py.runtime.node import Inbox, Node
+
+_CAMERA_DEFAULTS = {"realsense": "realsense"}
+
+
+def source_for_sensor(cfg: NetworkConfig, sensor: SensorConfig, spec: str | None = None) -> Source:
+    """Open the frame source of a network's sensor.
+
+    ``sim`` sensors render the network's scenario (``sim.sensor_model: rgbd``); ``camera``
+    and ``recording`` sensors open ``spec`` or the sensor's ``input``.
+
+    Raises
+    ------
+    ConfigError
+        When a camera or recording sensor says nowhere to read from.
+    SourceError
+        When the source cannot be opened.
+    """
+    if spec is None and sensor.source == "sim":
+        import time
+
+        from openptrack_py.sim.depth_source import SimDepthSource
+        from openptrack_py.sim.live import scenario_from_network
+
+        assert cfg.sim is not None  # the network file validates this
+        start = cfg.sim.start_time if cfg.sim.start_time is not None else time.time()
+        return SimDepthSource(
+            scenario_from_network(cfg), sensor.id, start_time=start, speed=cfg.sim.speed
+        )
+    spec = spec or sensor.input or _CAMERA_DEFAULTS.get(sensor.type)
+    if spec is None:
+        raise ConfigError(
+            f"sensors.{sensor.id}.input: a {sensor.source} sensor needs an input "
+            "(realsense[:SERIAL], azure-kinect[:N], a .bag, a folder or a cloud file)"
+        )
+    return open_source(spec)
+
+
+class DetectorService:
+    """Runs the people detector on one sensor's frames.
+
+    Parameters
+    ----------
+    node : Node
+        The node (bus, counters, stop flag).
+    sensor : SensorConfig
+        The sensor: id, type, pose, rate.
+    config : DetectorConfig
+        Detector settings.
+    source : Source
+        Where frames come from.
+    """
+
+    def __init__(
+        self, node: Node, sensor: SensorConfig, config: DetectorConfig, source: Source
+    ) -> None:
+        self.node = node
+        self.sensor = sensor
+        self.source = source
+        pose = world_from_optical(sensor.pose) if sensor.pose is not None else None
+        self.detector = PeopleDetector(
+            config,
+            world_from_camera=pose,
+            sensor_type=sensor.type,
+            frame_id=sensor.id,
+            rate_hz=config.rate_hz or sensor.rate_hz or 30.0,
+            rng=np.random.default_rng(0),
+        )
+        counters = node.counters
+        self._latest: Inbox[Frame] = Inbox(1, on_drop=lambda: counters.inc("frames_dropped"))
+        self._publisher = node.publisher(node.keys.detections(sensor.id))
+        self._grab_error: BaseException | None = None
+        self._grab_done = threading.Event()
+        self.seq = 0
+
+    def _grab(self) -> None:
+        try:
+            for frame in self.source.frames():
+                if not self.node.running:
+                    break
+                self.node.counters.inc("frames_in")
+                self._latest.push(frame)
+        except BaseException as exc:  # reported by run() in the node's thread
+            self._grab_error = exc
+        finally:
+            self._grab_done.set()
+
+    def step(self, frame: Frame, on_result: Callable[[int], None] | None = None) -> None:
+        """Detect in one frame and publish the batch."""
+        counters = self.node.counters
+        result = self.detector.detect(frame)
+        for stage, seconds in result.timings.items():
+            counters.add_timing(stage, seconds)
+        batch = result.to_batch(self.sensor.id, self.seq, frame.stamp)
+        self.seq += 1
+        self._publisher.put(encode_detection_batch(batch))
+        counters.inc("batches")
+        counters.inc("detections", len(batch.detections))
+        if result.status != "ok":
+            counters.inc(f"status_{result.status.replace('-', '_')}")
+
+    def run(self) -> None:
+        """Detect until the source ends or the node is stopped.
+
+        Raises
+        ------
+        SourceError
+            When the source fails (the launcher restarts the node with back-off).
+        """
+        log = self.node.log
+        log.info(
+            "detecting",
+            extra={
+                "fields": {"sensor": self.sensor.id, "source": getattr(self.source, "name", "")}
+            },
+        )
+        grabber = threading.Thread(target=self._grab, name="grab", daemon=True)
+        grabber.start()
+        try:
+            while self.node.running:
+                frame = self._latest.get(timeout=0.2)
+                if frame is None:
+                    if self._grab_done.is_set() and len(self._latest) == 0:
+                        break
+                    continue
+                self.step(frame)
+        finally:
+            self.source.close()
+            grabber.join(timeout=2.0)
+        if self._grab_error is not None:
+            if isinstance(self._grab_error, SourceError):
+                log.error("source failed: %s", self._grab_error)
+            raise self._grab_error
