@@ -1,4 +1,5 @@
-# make demo   run the demo network on simulated sensors (DEMO_SECONDS=N stops after N s)
+# make demo   run the demo network on simulated sensors (DEMO_SECONDS=N stops after N s;
+#             RGBD=1 renders depth images and runs the real detector on them)
 # make test   run the test suite
 # make bench  print benchmark figures as JSON
 # Each target creates and fills .venv first when needed.
@@ -7,8 +8,10 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.bootstrapped
-EXTRAS ?= dev,osc,web
+EXTRAS ?= dev,osc,web,sensor
 DEMO_SECONDS ?=
+RGBD ?=
+DEMO_ARGS ?= $(if $(RGBD),--set sim.sensor_model=rgbd --set detector.rate_hz=15)
 
 .PHONY: demo test bench lint format venv clean
 
@@ -19,7 +22,7 @@ $(STAMP): pyproject.toml scripts/bootstrap
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/openptrack launch demo --table $(if $(DEMO_SECONDS),--duration $(DEMO_SECONDS))
+	$(VENV)/bin/openptrack launch demo --table $(if $(DEMO_SECONDS),--duration $(DEMO_SECONDS)) $(DEMO_ARGS)
 
 test: $(STAMP)
 	$(PY) -m pytest

@@ -29,6 +29,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
 import orjson
 
@@ -42,6 +43,10 @@ from openptrack_py.runtime.args import (
     resolve_config_path,
 )
 from openptrack_py.runtime.logs import configure_logging
+
+if TYPE_CHECKING:
+    from openptrack_py.config import DetectorConfig
+    from openptrack_py.sim.depth_source import SimDepthSource
 
 EXIT_CONFIG = 2
 RGBD_START_DELAY_S = 3.0
@@ -332,6 +337,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
                 tracker_config=args.tracker_config,
                 overrides=args.overrides,
                 max_distance_m=args.max_distance,
+                sensor_model=args.sensor_model,
             )
             rows.append({"tracker": args.tracker, **result.to_dict()})
     columns = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "fp", "fn"]
@@ -401,7 +407,7 @@ def _cmd_record_sensor(args: argparse.Namespace) -> int:
 # ------------------------------------------------------------------------ detect
 
 
-def _detector_config(args: argparse.Namespace):  # noqa: ANN202 - DetectorConfig
+def _detector_config(args: argparse.Namespace) -> DetectorConfig:
     from openptrack_py.config import DetectorConfig, load_config
 
     overrides = list(args.overrides)
@@ -423,7 +429,7 @@ def _detector_config(args: argparse.Namespace):  # noqa: ANN202 - DetectorConfig
     return load_config(DetectorConfig, args.detector_config, overrides)
 
 
-def _sim_source_factory(spec: str):  # noqa: ANN202 - Source
+def _sim_source_factory(spec: str) -> SimDepthSource:
     """``sim:SCENARIO[:SENSOR]``: a scenario's sensor rendered faster than real time."""
     from openptrack_py.sim.depth_source import SimDepthSource
     from openptrack_py.sim.scenarios import build_scenario
@@ -454,8 +460,9 @@ def _cmd_detect(args: argparse.Namespace) -> int:
         from openptrack_py.geometry import world_from_optical
 
         pose = world_from_optical(spec.pose)
+    sensor_type = args.sensor_type or (spec.type.name if spec is not None else None)
     detector = PeopleDetector(
-        config, world_from_camera=pose, sensor_type=args.sensor_type, frame_id="sensor"
+        config, world_from_camera=pose, sensor_type=sensor_type, frame_id="sensor"
     )
     rows = []
     frames = 0
@@ -645,6 +652,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tracker-config", type=Path, help="YAML file of tracker parameters")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--max-distance", type=float, default=0.5, help="match distance, metres")
+    p.add_argument(
+        "--sensor-model",
+        choices=("detections", "rgbd"),
+        default="detections",
+        help="rgbd: render images and run the real detector (slower)",
+    )
     p.add_argument("--format", choices=("json", "table", "markdown"), default="table")
     p.set_defaults(func=_cmd_eval)
 

@@ -261,6 +261,20 @@ class SimConfig(StrictModel):
     start_time: float | None = Field(None, ge=0.0)
 
 
+MAX_DISTANCES: dict[str, float] = {
+    "kinect1": 8.0,
+    "kinect2": 10.0,
+    "realsense": 10.0,
+    "sr4500": 9.0,
+}
+"""Default depth limit per sensor type, metres."""
+
+MIN_POINTS: dict[str, int] = {"kinect1": 12, "kinect2": 20, "realsense": 20, "sr4500": 8}
+"""Default fewest points of a detection per sensor type (scaled with resolution)."""
+
+SAMPLING_FACTORS: dict[str, int] = {"kinect1": 1, "kinect2": 2, "realsense": 2, "sr4500": 1}
+"""Default pixel sampling per sensor type (about 50-80 thousand points per frame)."""
+
 HEIGHT_PRESETS: dict[str, tuple[float, float, float]] = {
     "adult": (1.0, 2.3, 1.3),
     "child": (0.5, 1.2, 0.7),
@@ -344,7 +358,7 @@ class HogConfig(StrictModel):
     enabled: bool = False
     image: Literal["auto", "color", "ir"] = "auto"
     min_luminance: float = Field(20.0, ge=0.0, le=255.0)
-    min_margin: float = Field(-1.5, ge=-20.0, le=20.0)
+    min_margin: float = Field(-2.5, ge=-20.0, le=20.0)
     weight: float = Field(0.5, ge=0.0, le=1.0)
 
 
@@ -360,14 +374,18 @@ class DetectorConfig(StrictModel):
         Height band above the floor whose points are clustered (preset if omitted).
     min_top_m : float, optional
         A blob's highest point must be at least this high (preset if omitted).
-    sampling_factor : int
-        Use every n-th pixel in each image direction.
-    max_distance_m : float
-        Points farther than this along the optical axis are ignored.
+    sampling_factor : int, optional
+        Use every n-th pixel in each image direction; per sensor type if omitted
+        (:data:`SAMPLING_FACTORS`: 1 for the low-resolution Kinect v1 and SR4500, 2 for
+        Kinect v2 and RealSense).
+    max_distance_m : float, optional
+        Points farther than this along the optical axis are ignored, and blobs reaching
+        it are dropped; the sensor type's depth limit if omitted (:data:`MAX_DISTANCES`).
     voxel_size_m : float
         Cell of the floor grid the band is projected onto (and of down-sampling).
-    min_points : int
-        Fewest points of a detection.
+    min_points : int, optional
+        Fewest points of a detection (after down-sampling); per sensor type if omitted
+        (:data:`MIN_POINTS`: fewer for low-resolution sensors).
     heads_minimum_distance_m : float
         Heads closer than this belong to one person; farther, a blob is split.
     min_size_m, max_size_m : float
@@ -390,10 +408,10 @@ class DetectorConfig(StrictModel):
     min_height_m: float | None = Field(None, ge=0.0, le=3.0)
     max_height_m: float | None = Field(None, gt=0.0, le=4.0)
     min_top_m: float | None = Field(None, ge=0.0, le=4.0)
-    sampling_factor: int = Field(2, ge=1, le=16)
-    max_distance_m: float = Field(10.0, gt=0.0, le=50.0)
+    sampling_factor: int | None = Field(None, ge=1, le=16)
+    max_distance_m: float | None = Field(None, gt=0.0, le=50.0)
     voxel_size_m: float = Field(0.06, ge=0.01, le=0.5)
-    min_points: int = Field(20, ge=1, le=100_000)
+    min_points: int | None = Field(None, ge=1, le=100_000)
     heads_minimum_distance_m: float = Field(0.3, gt=0.0, le=2.0)
     min_size_m: float = Field(0.06, ge=0.0, le=5.0)
     max_size_m: float = Field(1.0, gt=0.0, le=10.0)
@@ -425,6 +443,24 @@ class DetectorConfig(StrictModel):
             low if self.min_height_m is None else self.min_height_m,
             high if self.max_height_m is None else self.max_height_m,
         )
+
+    def max_distance_for(self, sensor_type: str | None) -> float:
+        """Depth limit for a sensor type (``max_distance_m`` when set; 10 m if unknown)."""
+        if self.max_distance_m is not None:
+            return self.max_distance_m
+        return MAX_DISTANCES.get(sensor_type or "", 10.0)
+
+    def min_points_for(self, sensor_type: str | None) -> int:
+        """Fewest points of a detection for a sensor type (``min_points`` when set)."""
+        if self.min_points is not None:
+            return self.min_points
+        return MIN_POINTS.get(sensor_type or "", 20)
+
+    def sampling_for(self, sensor_type: str | None) -> int:
+        """Pixel sampling step for a sensor type (``sampling_factor`` when set)."""
+        if self.sampling_factor is not None:
+            return self.sampling_factor
+        return SAMPLING_FACTORS.get(sensor_type or "", 2)
 
     @property
     def top_minimum(self) -> float:

@@ -28,7 +28,7 @@ MULTI_HOST = CONFIG_DIR / "multi_host.yaml"  # two camera sensors, no sim sectio
 CROWD = CONFIG_DIR / "crowd.yaml"  # no sensors at all
 
 SENSOR_KEYS = (
-    "calibration, clock_offset_s, clutter_per_frame, frame_drop_probability, host, id, "
+    "calibration, clock_offset_s, clutter_per_frame, frame_drop_probability, host, id, input, "
     "latency_jitter_s, latency_s, miss_probability, pose, pose_error, rate_hz, source, type"
 )
 
@@ -92,13 +92,13 @@ def test_no_file_gives_defaults() -> None:
         ),
         (
             "sensros=[]",
-            "sensros: unknown key; did you mean 'sensors'? "
-            "(allowed: detector, outputs, recorder, sensors, sim, site, stats_interval_s, tracker, zenoh)",
+            "sensros: unknown key; did you mean 'sensors'? (allowed: detector, outputs, "
+            "recorder, sensors, sim, site, stats_interval_s, tracker, zenoh)",
         ),
         (
             "sim.sceanrio=crowd",
             "sim.sceanrio: unknown key; did you mean 'scenario'? (allowed: duration_s, "
-            "ground_truth_rate_hz, host, scenario, seed, sensor_model, speed, "
+            "ground_truth_rate_hz, host, scenario, seed, sensor_model, speed, start_time, "
             "use_scenario_sensors)",
         ),
         (

@@ -51,6 +51,21 @@ class Blobs:
     def __len__(self) -> int:
         return len(self.top)
 
+    def select(self, keep: np.ndarray) -> Blobs:
+        """The blobs where ``keep`` is true, renumbered from 0."""
+        renumber = np.full(len(self.top) + 1, -1, dtype=np.int64)
+        renumber[:-1][keep] = np.arange(int(np.count_nonzero(keep)))
+        return Blobs(
+            labels=renumber[self.labels],  # -1 maps to the last entry, -1
+            head_xy=self.head_xy[keep],
+            centroid_xy=self.centroid_xy[keep],
+            top=self.top[keep],
+            points=self.points[keep],
+            width=self.width[keep],
+            length=self.length[keep],
+            area=self.area[keep],
+        )
+
 
 def _empty(n: int) -> Blobs:
     z = np.zeros(0)
@@ -69,7 +84,8 @@ class HeadClusterer:
     min_top_m : float
         A head must be at least this high.
     max_height_m : float
-        Top of the height band: blobs that reach it and continue above are not people.
+        Top of the height band: blobs cut by it (walls, tall furniture, people taller
+        than the band) are not detections.
     min_points : int
         Fewest points of a blob.
     min_size_m, max_size_m : float
@@ -78,10 +94,15 @@ class HeadClusterer:
         Footprint area limits.
     """
 
-    HEAD_DROP_M = 0.1
-    """Around a head, most of the ring must lie at least this much lower."""
+    CAP_DEPTH_M = 0.06
+    """Depth of the cap below a peak that must stay as small as a head."""
+    CAP_REACH_M = 0.3
+    """Farthest a head's cap may reach from its peak."""
     PROMINENCE_M = 0.1
     """Between two people's heads the height map dips at least this much."""
+
+    CUT_MARGIN_M = 0.08
+    """A blob whose top is this close to the top of the band was cut by it."""
 
     def __init__(
         self,
@@ -109,16 +130,8 @@ class HeadClusterer:
         half = max(1, round(0.5 * heads_minimum_distance_m / cell_m))
         self._window = 2 * half + 1
 
-    MAX_TALL_SHARE = 0.2
-    """Blobs with more of their cells than this under something above the band are dropped."""
-
-    def cluster(self, xyz: np.ndarray, above_xy: np.ndarray | None = None) -> Blobs:
-        """Blobs of ``(n, 3)`` points ``(x, y, height)`` in a floor-aligned frame.
-
-        ``above_xy`` are the floor positions of points just above the band: a blob that
-        reaches the top of the band and continues above it (a wall, a tall cabinet) is
-        not a person.
-        """
+    def cluster(self, xyz: np.ndarray) -> Blobs:
+        """Blobs of ``(n, 3)`` points ``(x, y, height)`` in a floor-aligned frame."""
         n = len(xyz)
         if n < self.min_points:
             return _empty(n)
@@ -128,7 +141,7 @@ class HeadClusterer:
         rows, cols = int(ij[:, 0].max()) + 2, int(ij[:, 1].max()) + 2
         lin = ij[:, 0] * cols + ij[:, 1]
         h = xyz[:, 2]
-        order = np.argsort(h, kind="stable")
+        order = np.argsort(h)
         top = np.full(rows * cols, -np.inf)
         top[lin[order]] = h[order]  # last write wins: the highest point of each cell
         top = top.reshape(rows, cols)
@@ -144,20 +157,6 @@ class HeadClusterer:
             top, size=self._window, mode="constant", cval=-np.inf
         )
         cell_blob = self._assign_heads(top, components, peaks)
-        if above_xy is not None and len(above_xy):
-            aij = ((above_xy - lo) / cell).astype(np.int64)
-            inside = (aij >= 0).all(axis=1) & (aij[:, 0] < rows) & (aij[:, 1] < cols)
-            tall = np.zeros((rows, cols), dtype=bool)
-            tall[aij[inside, 0], aij[inside, 1]] = True
-            k = int(cell_blob.max()) + 1
-            if k > 0:
-                cells = np.bincount(cell_blob[cell_blob >= 0], minlength=k)
-                under = np.bincount(cell_blob[tall & (cell_blob >= 0)], minlength=k)
-                blob_top = np.full(k, -np.inf)
-                np.maximum.at(blob_top, cell_blob[cell_blob >= 0], top[cell_blob >= 0])
-                cut = blob_top >= self.max_height_m - 0.1  # reaches the top of the band
-                drop = cut & (under > self.MAX_TALL_SHARE * np.maximum(cells, 1))
-                cell_blob[np.isin(cell_blob, np.flatnonzero(drop))] = -1
         point_blob = cell_blob.ravel()[lin]
         return self._summarise(xyz, point_blob, cell_blob)
 
@@ -193,7 +192,7 @@ class HeadClusterer:
             start = end
         head_comp = np.array([c for c, _, _ in heads])
         head_ij = np.array([(a, b) for _, a, b in heads], dtype=float)
-        rounded = np.array([self._is_head(top, int(a), int(b)) for _, a, b in heads])
+        rounded = np.array([self._is_head(filled, int(a), int(b)) for _, a, b in heads])
         ci, cj = np.nonzero(components > 0)
         cc = components[ci, cj]
         # Nearest head of the same component for every cell.
@@ -222,27 +221,33 @@ class HeadClusterer:
         return bool(saddle < top[other] - self.PROMINENCE_M)
 
     def _is_head(self, top: np.ndarray, i: int, j: int) -> bool:
-        """Whether a height peak is rounded like a head rather than a flat top.
+        """Whether a height peak is a head's crown rather than a flat or long top.
 
-        Walls and furniture cut by the band are plateaus: most of the ring 0.15-0.3 m
-        around the peak is as high as the peak. Around a head, shoulders and the rest
-        of the body are lower (cells of other, taller things do not count).
+        The cap of a head — the connected cells within :attr:`CAP_DEPTH_M` of the peak —
+        is about as wide as a head; the cap of a wall, a table or a cabinet runs on. A
+        cap up to :attr:`CAP_REACH_M` from the peak is a head; up to twice that (depth
+        noise blurs far heads into their shoulders), a head only if the ring 0.15-0.3 m
+        around the peak lies, by its median, :attr:`CAP_DEPTH_M` lower (shoulders);
+        anything larger is not a head. ``top`` has single-cell holes filled.
         """
-        r1 = 0.5 * self.heads_minimum_distance_m / self.cell_m
-        r2 = self.heads_minimum_distance_m / self.cell_m
-        span = int(np.ceil(r2))
+        reach = self.CAP_REACH_M / self.cell_m
+        span = int(np.ceil(2 * reach)) + 1
         i0, j0 = max(i - span, 0), max(j - span, 0)
         window = top[i0 : i + span + 1, j0 : j + span + 1]
-        di = np.arange(i0, i0 + window.shape[0])[:, None] - i
-        dj = np.arange(j0, j0 + window.shape[1])[None, :] - j
-        d2 = di * di + dj * dj
-        ring = (d2 >= r1 * r1) & (d2 <= r2 * r2) & np.isfinite(window)
         peak = top[i, j]
-        ring &= window <= peak + 1e-6
-        if not ring.any():
-            return True  # a head alone (the rest hidden)
-        level = window[ring] >= peak - self.HEAD_DROP_M
-        return bool(level.mean() < 0.5)
+        cap, _ = ndimage.label(window >= peak - self.CAP_DEPTH_M, np.ones((3, 3), int))
+        ci, cj = np.nonzero(cap == cap[i - i0, j - j0])
+        di, dj = np.arange(window.shape[0])[:, None] + i0 - i, np.arange(window.shape[1]) + j0 - j
+        d2 = di * di + dj * dj
+        far = float(d2[ci, cj].max())
+        if far <= reach * reach:
+            return True
+        if far > 4 * reach * reach:
+            return False
+        r1 = 0.5 * self.heads_minimum_distance_m / self.cell_m
+        r2 = self.heads_minimum_distance_m / self.cell_m
+        ring = (d2 >= r1 * r1) & (d2 <= r2 * r2) & np.isfinite(window) & (window <= peak)
+        return bool(ring.any() and np.median(window[ring]) < peak - self.CAP_DEPTH_M)
 
     def _summarise(self, xyz: np.ndarray, point_blob: np.ndarray, cell_blob: np.ndarray) -> Blobs:
         """Per-blob statistics, then the size tests; blobs renumbered from 0."""
@@ -276,6 +281,7 @@ class HeadClusterer:
         keep = (
             (count >= self.min_points)
             & (top >= self.min_top_m)
+            & (top < self.max_height_m - self.CUT_MARGIN_M)
             & (width >= self.min_size_m)
             & (length <= self.max_size_m)
             & (area >= self.min_area_m2)

@@ -118,6 +118,12 @@ def fit_plane(points: np.ndarray) -> tuple[np.ndarray, float]:
     return normal, -float(normal @ centre)
 
 
+def _up_of_tilt(tilt_deg: float) -> np.ndarray:
+    """World up in the optical frame of a camera pitched down by ``tilt_deg`` (no roll)."""
+    tilt = math.radians(tilt_deg)
+    return np.array([0.0, -math.cos(tilt), -math.sin(tilt)])
+
+
 def _orient_up(normal: np.ndarray, offset: float) -> tuple[np.ndarray, float]:
     return (-normal, -offset) if offset < 0 else (normal, offset)
 
@@ -241,6 +247,8 @@ class GroundTracker:
     while calibration overrules the estimate, every :attr:`RECHECK_FRAMES`.
     """
 
+    REFINE_SAMPLE = 8000
+    """Points (evenly strided) used by each frame's refinement."""
     RETRY_FRAMES = 5
     RECHECK_FRAMES = 60
 
@@ -264,15 +272,22 @@ class GroundTracker:
         self.estimates = 0
         self._since_estimate = 0
 
-    def _expected_up(self) -> tuple[np.ndarray, float]:
+    STEEP_TILT_DEG = 50.0
+    """With the tilt unknown and no plane near an upright camera's up, a camera pitched
+    down this much is tried next (within :attr:`STEEP_ALLOWANCE_DEG`)."""
+    STEEP_ALLOWANCE_DEG = 30.0
+
+    def _expected_ups(self) -> list[tuple[np.ndarray, float]]:
+        """Expected floor normals with their allowances, tried in order."""
         cfg = self.config
         if self.calibrated is not None:
-            return np.asarray(self.calibrated.normal), cfg.angle_allowance_deg
+            return [(np.asarray(self.calibrated.normal), cfg.angle_allowance_deg)]
         if cfg.expected_tilt_deg is not None:
-            tilt = math.radians(cfg.expected_tilt_deg)
-            # camera pitched down by ``tilt``: world up in optical coordinates
-            return np.array([0.0, -math.cos(tilt), math.sin(tilt)]), cfg.angle_allowance_deg
-        return np.array([0.0, -1.0, 0.0]), max(cfg.angle_allowance_deg, 45.0)
+            return [(_up_of_tilt(cfg.expected_tilt_deg), cfg.angle_allowance_deg)]
+        return [
+            (np.array([0.0, -1.0, 0.0]), max(cfg.angle_allowance_deg, 45.0)),
+            (_up_of_tilt(self.STEEP_TILT_DEG), self.STEEP_ALLOWANCE_DEG),
+        ]
 
     def update(self, points: np.ndarray) -> GroundPlane | None:
         """The plane to use for this frame's optical-frame points (``None``: not found yet)."""
@@ -285,11 +300,14 @@ class GroundTracker:
             self.estimates == 0 or self._since_estimate >= retry
         ):
             self._since_estimate = 0
-            up, allowance = self._expected_up()
-            estimate = estimate_ground(
-                points, self.rng, expected_up=up, angle_allowance_deg=allowance,
-                inlier_m=cfg.inlier_m,
-            )  # fmt: skip
+            estimate = None
+            for up, allowance in self._expected_ups():
+                estimate = estimate_ground(
+                    points, self.rng, expected_up=up, angle_allowance_deg=allowance,
+                    inlier_m=cfg.inlier_m,
+                )  # fmt: skip
+                if estimate is not None:
+                    break
             self.estimates += 1
             chosen = (
                 estimate
@@ -311,8 +329,8 @@ class GroundTracker:
 
     def _refine(self, plane: GroundPlane, points: np.ndarray) -> GroundPlane:
         """Blend in a least-squares fit of this frame's inliers."""
-        height = plane.height(points)
-        inliers = points[np.abs(height) < self.config.inlier_m]
+        sample = points[:: max(1, len(points) // self.REFINE_SAMPLE)]
+        inliers = sample[np.abs(plane.height(sample)) < self.config.inlier_m]
         if len(inliers) < 300:
             return plane
         normal, offset = _orient_up(*fit_plane(inliers.astype(np.float64)))

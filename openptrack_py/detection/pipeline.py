@@ -3,7 +3,7 @@
 Steps, each a small component with its settings in :class:`~openptrack_py.config.DetectorConfig`:
 
 1. **cloud** — every ``sampling_factor``-th pixel back-projected through the intrinsics
-   (optical frame), invalid and far (``max_distance_m``) readings dropped;
+   (optical frame), invalid and far (``max_distance_m``, by sensor type) readings dropped;
 2. **ground** — the floor plane (:mod:`.ground`): estimated, calibrated or both;
 3. **band** — points whose height above the floor lies in the preset's band;
 4. **background** — optional removal of the learned static scene (:mod:`.background`);
@@ -46,8 +46,8 @@ STAGES = ("cloud", "ground", "band", "background", "downsample", "cluster", "des
 """Names of the timed stages, in order."""
 
 _TOF_TYPES = ("kinect2", "sr4500")
-ABOVE_BAND_M = 0.3
-"""Points up to this far above the band mark structures that continue above it."""
+RANGE_CUT_M = 0.2
+"""Blobs with points this close to ``max_distance_m`` are cut by the depth limit: dropped."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,11 +147,14 @@ class _Rays:
         self.key = (k, step)
         self.u = np.arange(0, k.width, step)
         self.v = np.arange(0, k.height, step)
-        rays = np.empty((len(self.v), len(self.u), 3), dtype=np.float32)
-        rays[..., 0] = ((self.u - k.cx) / k.fx)[None, :]
-        rays[..., 1] = ((self.v - k.cy) / k.fy)[:, None]
-        rays[..., 2] = 1.0
-        self.rays = rays
+        shape = (len(self.v), len(self.u))
+        # flat per-pixel tables: x/z and y/z of each ray, and its pixel coordinates
+        x = ((self.u - k.cx) / k.fx).astype(np.float32)
+        y = ((self.v - k.cy) / k.fy).astype(np.float32)
+        self.x = np.broadcast_to(x[None, :], shape).ravel()
+        self.y = np.broadcast_to(y[:, None], shape).ravel()
+        uu, vv = np.meshgrid(self.u, self.v)
+        self.pixels = np.column_stack([uu.ravel(), vv.ravel()])
 
 
 class PeopleDetector:
@@ -188,6 +191,7 @@ class PeopleDetector:
         self.world_from_camera = world_from_camera
         self.sensor_type = sensor_type
         self.frame_id = "world" if world_from_camera is not None else frame_id
+        self.max_distance_m = config.max_distance_for(sensor_type)
         calibrated = (
             GroundPlane.from_world_pose(world_from_camera)
             if world_from_camera is not None
@@ -199,7 +203,7 @@ class PeopleDetector:
             heads_minimum_distance_m=config.heads_minimum_distance_m,
             min_top_m=config.top_minimum,
             max_height_m=config.band[1],
-            min_points=config.min_points,
+            min_points=config.min_points_for(sensor_type),
             min_size_m=config.min_size_m,
             max_size_m=config.max_size_m,
             min_area_m2=config.min_area_m2,
@@ -222,26 +226,29 @@ class PeopleDetector:
 
     def _cloud(self, frame: Frame) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Optical-frame points, their pixel coordinates and colours."""
-        max_z = self.config.max_distance_m
+        max_z = self.max_distance_m
         if frame.depth is None:
             pts = np.asarray(frame.points, dtype=np.float32).reshape(-1, 3)
             ok = np.isfinite(pts).all(axis=1) & (pts[:, 2] > 0) & (pts[:, 2] <= max_z)
             colours = None if frame.point_colors is None else np.asarray(frame.point_colors)[ok]
             return pts[ok], None, colours
         assert frame.intrinsics is not None
-        step = self.config.sampling_factor
+        if self.sensor_type is None and self.config.sampling_factor is None:
+            step = 1 if frame.intrinsics.width <= 320 else 2  # low resolution: every pixel
+        else:
+            step = self.config.sampling_for(self.sensor_type)
         if self._rays is None or self._rays.key != (frame.intrinsics, step):
             self._rays = _Rays(frame.intrinsics, step)
         rays = self._rays
-        depth = frame.depth[::step, ::step]
+        depth = frame.depth[::step, ::step].ravel()
         with np.errstate(invalid="ignore"):
             ok = (depth > 0) & (depth <= max_z)  # NaN compares False
-        vi, ui = np.nonzero(ok)
-        pts = rays.rays[vi, ui] * depth[vi, ui][:, None]
-        pixels = np.column_stack([rays.u[ui], rays.v[vi]])
+        z = depth[ok].astype(np.float32)
+        pts = np.column_stack([rays.x[ok] * z, rays.y[ok] * z, z])
+        pixels = np.compress(ok, rays.pixels, axis=0)
         colours = None
         if frame.color is not None:
-            colours = frame.color[pixels[:, 1], pixels[:, 0]]
+            colours = np.compress(ok, frame.color[::step, ::step].reshape(-1, 3), axis=0)
         return pts, pixels, colours
 
     # ------------------------------------------------------------------ detect
@@ -270,8 +277,6 @@ class PeopleDetector:
             floor_from_camera = plane.ground_from_camera().astype(np.float32)
             sel = np.flatnonzero(band)
             floor_pts = apply(floor_from_camera, pts[sel]).astype(np.float32)
-            above = pts[(h > high) & (h <= high + ABOVE_BAND_M)]
-            above_xy = above @ floor_from_camera[:2, :3].T + floor_from_camera[:2, 3]
         if self.background is not None:
             with stage("background"):
                 if self.background.learning:
@@ -286,7 +291,19 @@ class PeopleDetector:
             _, first = np.unique(keys, return_index=True)
             sel, floor_pts = sel[first], floor_pts[first]
         with stage("cluster"):
-            blobs = self.clusterer.cluster(floor_pts, above_xy)
+            blobs = self.clusterer.cluster(floor_pts)
+            if len(blobs):
+                # Blobs reaching the depth limit were cut by it (walls, far furniture).
+                far = np.zeros(len(blobs))
+                member = blobs.labels >= 0
+                np.maximum.at(far, blobs.labels[member], pts[sel[member], 2])
+                keep = far < self.max_distance_m - RANGE_CUT_M
+                if pixels is not None:
+                    # Blobs touching the top of the image were cut by the field of view.
+                    high = np.full(len(blobs), np.iinfo(np.int64).max)
+                    np.minimum.at(high, blobs.labels[member], pixels[sel[member], 1])
+                    keep &= high > 0
+                blobs = blobs.select(keep)
         if len(blobs) == 0:
             return DetectionResult((), self.frame_id, plane, timings, "empty")
         with stage("describe"):
@@ -319,7 +336,7 @@ class PeopleDetector:
             apply(self.world_from_camera, optical) if self.world_from_camera is not None else floor
         )
         distance = np.linalg.norm(optical, axis=1)
-        support = np.minimum(1.0, blobs.points / (4.0 * cfg.min_points))
+        support = np.minimum(1.0, blobs.points / (4.0 * self.clusterer.min_points))
         confidence = 0.55 + 0.4 * support
         boxes = self._boxes(frame, camera_from_floor, xy, blobs)
         looks = np.zeros((k, cfg.appearance_bins), dtype=np.uint8)

@@ -48,7 +48,11 @@ def source_for_sensor(cfg: NetworkConfig, sensor: SensorConfig, spec: str | None
         assert cfg.sim is not None  # the network file validates this
         start = cfg.sim.start_time if cfg.sim.start_time is not None else time.time()
         return SimDepthSource(
-            scenario_from_network(cfg), sensor.id, start_time=start, speed=cfg.sim.speed
+            scenario_from_network(cfg),
+            sensor.id,
+            start_time=start,
+            speed=cfg.sim.speed,
+            rate_hz=cfg.detector.rate_hz,
         )
     spec = spec or sensor.input or _CAMERA_DEFAULTS.get(sensor.type)
     if spec is None:

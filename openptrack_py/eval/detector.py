@@ -24,10 +24,10 @@ from scipy.optimize import linear_sum_assignment
 from openptrack_py.config import DetectorConfig, SensorConfig
 from openptrack_py.detection.pipeline import PeopleDetector
 from openptrack_py.geometry import world_from_optical
+from openptrack_py.sim.depth_source import scenario_world
 from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.scenarios import Scenario, build_scenario
 from openptrack_py.sim.sensors import SENSOR_TYPES
-from openptrack_py.sim.world import World
 
 
 @dataclass
@@ -163,10 +163,7 @@ def evaluate_detector(
             else DetectorConfig()
         )
     sc = scenario_for_sensor_type(scenario, seed, sensor_type, duration_s)
-    root = np.random.SeedSequence(seed)
-    world_seq, _ = root.spawn(2)
-    world_rng = np.random.default_rng(world_seq)
-    world = World(sc.room, sc.make_director(world_rng), world_rng)
+    world = scenario_world(sc)
     kind = SENSOR_TYPES[sensor_type]
     cams = []
     for i, spec in enumerate(sc.sensors):
@@ -179,7 +176,7 @@ def evaluate_detector(
         )
         cams.append((spec, renderer, detector, DetectorScore()))
     total = DetectorScore()
-    reach = min(kind.max_range_m, config.max_distance_m)
+    reach = min(kind.max_range_m, config.max_distance_for(sensor_type))
     steps = int(duration_s * sample_hz)
     for k in range(1, steps + 1):
         t = k / sample_hz

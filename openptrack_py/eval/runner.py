@@ -250,6 +250,7 @@ def evaluate(
     ground_truth_rate_hz: float = 30.0,
     warmup_s: float = 0.0,
     on_frame: Callable[[float, GroundTruthFrame, Hypotheses | None], None] | None = None,
+    sensor_model: str = "detections",
 ) -> EvalResult:
     """Run ``scenario`` through ``feed`` and score it.
 
@@ -268,6 +269,8 @@ def evaluate(
         initialising tracks).
     on_frame : callable, optional
         Called with every scored frame (for plots and debugging).
+    sensor_model : {"detections", "rgbd"}
+        Sensor simulation level (``rgbd`` renders images and runs the detector).
 
     Raises
     ------
@@ -276,7 +279,7 @@ def evaluate(
     """
     if scenario.duration_s is None:
         raise ValueError("evaluate: the scenario needs a finite duration_s")
-    sim = Simulator(scenario, ground_truth_rate_hz=ground_truth_rate_hz)
+    sim = Simulator(scenario, ground_truth_rate_hz=ground_truth_rate_hz, sensor_model=sensor_model)
     acc = MotAccumulator(max_distance_m)
     batches = 0
     start = time.perf_counter()

@@ -65,8 +65,12 @@ def run_eval(
     tracker_config: Path | None = None,
     overrides: Sequence[str] = (),
     max_distance_m: float = 0.5,
+    sensor_model: str = "detections",
 ) -> EvalResult:
     """Build ``scenario`` (unless given built) and evaluate the named tracker on it.
+
+    ``sensor_model="rgbd"`` renders every sensor's images and runs the real detector on
+    them instead of the detection-level sensor model.
 
     Raises
     ------
@@ -81,4 +85,4 @@ def run_eval(
             scenario, seed=seed, duration_s=-1.0 if duration_s is None else duration_s
         )
     feed = TRACKERS[name](tracker_config, overrides)
-    return evaluate(scenario, feed, max_distance_m=max_distance_m)
+    return evaluate(scenario, feed, max_distance_m=max_distance_m, sensor_model=sensor_model)

@@ -14,15 +14,19 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from openptrack_py.config import DetectorConfig
 from openptrack_py.detection.frame import Frame, Intrinsics
+from openptrack_py.detection.pipeline import PeopleDetector
 from openptrack_py.errors import ConfigError
+from openptrack_py.geometry import world_from_optical
 from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.scenarios import Scenario
-from openptrack_py.sim.world import World
+from openptrack_py.sim.sensors import Observation, SensorModel, SensorSpec
+from openptrack_py.sim.world import Room, Snapshot, World
 
 
 def scenario_world(scenario: Scenario) -> World:
-    """The scenario's world, seeded exactly as :class:`~openptrack_py.sim.simulator.Simulator` does."""
+    """The scenario's world, seeded as :class:`~openptrack_py.sim.simulator.Simulator` seeds it."""
     world_seq, _ = np.random.SeedSequence(scenario.seed).spawn(2)
     rng = np.random.default_rng(world_seq)
     return World(scenario.room, scenario.make_director(rng), rng)
@@ -41,12 +45,14 @@ class SimDepthSource:
         UNIX time of the scenario's start.
     speed : float
         Playback speed relative to real time.
+    rate_hz : float, optional
+        Frame rate (the sensor's own if omitted).
     realtime : bool
         Pace frames by the clock, skipping frames that are already past when behind
         (a live sensor does not wait for its consumer); otherwise render every frame at
         once.
-    clock, sleep : callable
-        Time source and sleep, for tests.
+    clock : callable
+        Time source, for tests.
 
     Raises
     ------
@@ -61,6 +67,7 @@ class SimDepthSource:
         *,
         start_time: float,
         speed: float = 1.0,
+        rate_hz: float | None = None,
         realtime: bool = True,
         clock: Callable[[], float] = time.time,
     ) -> None:
@@ -77,6 +84,7 @@ class SimDepthSource:
         self.speed = speed
         self.realtime = realtime
         self.clock = clock
+        self.rate_hz = rate_hz or self.spec.rate_hz
         self.renderer = DepthRenderer(
             self.spec, scenario.room, np.random.default_rng([scenario.seed, 41, index])
         )
@@ -91,7 +99,7 @@ class SimDepthSource:
         end = self.scenario.duration_s
         k = 0
         while not self._stop.is_set():
-            t = spec.phase_s + k / spec.rate_hz
+            t = spec.phase_s + k / self.rate_hz
             if end is not None and t > end:
                 return
             if self.realtime:
@@ -101,7 +109,7 @@ class SimDepthSource:
                     if self._stop.wait(wait):
                         return
                 else:
-                    late = int(-wait * self.speed * spec.rate_hz)
+                    late = int(-wait * self.speed * self.rate_hz)
                     if late > 0:  # frames whose time has passed are never captured
                         self.skipped += late
                         k += late
@@ -120,3 +128,59 @@ class SimDepthSource:
 
     def __exit__(self, *_exc: object) -> None:
         self.close()
+
+
+class RenderedSensorModel:
+    """A sensor simulated at the image level: render, then run the real detector.
+
+    A drop-in for :class:`~openptrack_py.sim.sensors.SensorModel` in the
+    :class:`~openptrack_py.sim.simulator.Simulator` (``sensor_model="rgbd"``), so that
+    evaluation can score the whole chain, detector included, faster than real time.
+
+    Parameters
+    ----------
+    spec : SensorSpec
+        The sensor.
+    room : Room
+        The room.
+    rng : numpy.random.Generator
+        Rendering noise.
+    config : DetectorConfig, optional
+        Detector settings.
+    """
+
+    def __init__(
+        self,
+        spec: SensorSpec,
+        room: Room,
+        rng: np.random.Generator,
+        config: DetectorConfig | None = None,
+    ) -> None:
+        self.spec = spec
+        self.renderer = DepthRenderer(spec, room, rng)
+        self.detector = PeopleDetector(
+            config or DetectorConfig(),
+            world_from_camera=world_from_optical(spec.pose),
+            sensor_type=spec.type.name,
+            rate_hz=spec.rate_hz,
+            rng=np.random.default_rng(0),
+        )
+        self._coverage = SensorModel(spec, room, np.random.default_rng(0))
+
+    def covers(self, pos: np.ndarray, height: np.ndarray) -> np.ndarray:
+        """Mask of people whose head is in view (occlusion ignored)."""
+        return self._coverage.covers(pos, height)
+
+    def observe(self, snap: Snapshot) -> Observation:
+        """Render ``snap`` and detect; person ids by nearest truth within 0.3 m (else 0)."""
+        result = self.detector.detect(self.renderer.render(snap).frame)
+        detections = tuple(d.to_detection() for d in result.detections)
+        ids = []
+        for d in detections:
+            if len(snap):
+                gap = np.hypot(snap.pos[:, 0] - d.x, snap.pos[:, 1] - d.y)
+                best = int(np.argmin(gap))
+                ids.append(int(snap.ids[best]) if gap[best] <= 0.3 else 0)
+            else:
+                ids.append(0)
+        return Observation(detections, tuple(ids))

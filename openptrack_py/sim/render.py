@@ -19,8 +19,9 @@ The scene:
 Per sensor type, the depth is then degraded as that sensor degrades it: Gaussian noise
 (Kinect v1 and structured light grow with distance squared, time-of-flight sensors are
 nearly constant), quantisation (Kinect v1 in disparity, the others in millimetres),
-range limits, random dropouts, readings lost at grazing angles and, for time-of-flight
-sensors, "flying pixels" lost at depth edges.
+depth limits (on the depth value, as the cameras apply them), random dropouts, readings
+lost at grazing angles and, for time-of-flight sensors, "flying pixels" lost at depth
+edges.
 """
 
 from __future__ import annotations
@@ -447,8 +448,8 @@ class DepthRenderer:
     def _degrade(self, depth: np.ndarray, grazing: np.ndarray) -> np.ndarray:
         """Apply the sensor type's noise, quantisation, range limits and lost readings."""
         kind = self.spec.type
-        range_m = depth * self._ray_norm
-        invalid = ~np.isfinite(depth) | (range_m < kind.min_range_m) | (range_m > kind.max_range_m)
+        # Depth cameras limit the depth value (along the optical axis), not the range.
+        invalid = ~np.isfinite(depth) | (depth < kind.min_range_m) | (depth > kind.max_range_m)
         out = depth
         noise = self.noise
         if noise is not None:

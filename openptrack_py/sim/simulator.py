@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from openptrack_py.config import DetectorConfig
+from openptrack_py.errors import ConfigError
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.ground_truth import GroundTruthFrame, PersonState
 from openptrack_py.sim.scenarios import Scenario
@@ -81,6 +83,11 @@ class Simulator:
         Rate of :class:`TruthFrame` events; ``None`` for none.
     dt : float
         World step, seconds.
+    sensor_model : {"detections", "rgbd"}
+        ``detections``: the detection-level sensor model; ``rgbd``: render each sensor's
+        images and run the real people detector on them (slower, detector in the loop).
+    detector_config : DetectorConfig, optional
+        Detector settings for ``rgbd``.
     """
 
     def __init__(
@@ -90,6 +97,8 @@ class Simulator:
         start_time: float = DEFAULT_START_TIME,
         ground_truth_rate_hz: float | None = 30.0,
         dt: float = 0.04,
+        sensor_model: str = "detections",
+        detector_config: DetectorConfig | None = None,
     ) -> None:
         self.scenario = scenario
         self.start_time = start_time
@@ -104,6 +113,19 @@ class Simulator:
                 scenario.sensors, sensor_seq.spawn(len(scenario.sensors)), strict=True
             )
         ]
+        if sensor_model == "rgbd":
+            from openptrack_py.sim.depth_source import RenderedSensorModel
+
+            specs = scenario.sensors
+            rngs = [np.random.default_rng([scenario.seed, 41, i]) for i in range(len(specs))]
+            self.models = [
+                RenderedSensorModel(spec, scenario.room, rng, detector_config)
+                for spec, rng in zip(specs, rngs, strict=True)
+            ]
+        elif sensor_model != "detections":
+            raise ConfigError(
+                f"sensor_model: unknown {sensor_model!r} (allowed: detections, rgbd)"
+            )
         self._frame_rngs = [
             np.random.default_rng([scenario.seed, 11, i]) for i in range(len(self.models))
         ]
