@@ -13,6 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks import (
     bench_codec,
+    bench_detector,
     bench_end_to_end,
     bench_sim,
     bench_stonesoup,
@@ -30,6 +31,7 @@ def main() -> None:
         "end_to_end": bench_end_to_end.main(),
         "simulator": bench_sim.main(),
         "tracker_cost": bench_tracker_cost.main(),
+        "detector": bench_detector.main(),
         "stonesoup": bench_stonesoup.main(),
     }
     out = Path(__file__).resolve().parent / "results" / "latest.json"
