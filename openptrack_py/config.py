@@ -262,12 +262,14 @@ class SimConfig(StrictModel):
 
 
 MAX_DISTANCES: dict[str, float] = {
-    "kinect1": 8.0,
+    "kinect1": 5.0,
     "kinect2": 10.0,
-    "realsense": 10.0,
-    "sr4500": 9.0,
+    "realsense": 7.0,
+    "sr4500": 8.0,
 }
-"""Default depth limit per sensor type, metres."""
+"""Default depth limit per sensor type, metres: OpenPTrack's values (Kinect v1 5 m,
+Kinect v2 10 m, SR4500 8 m) and, for RealSense, where its stereo noise (about 6 cm at
+7 m) still leaves a head distinguishable from shoulders."""
 
 MIN_POINTS: dict[str, int] = {"kinect1": 12, "kinect2": 20, "realsense": 20, "sr4500": 8}
 """Default fewest points of a detection per sensor type (scaled with resolution)."""
@@ -298,8 +300,10 @@ class GroundConfig(StrictModel):
     expected_tilt_deg : float, optional
         Rough downward tilt of the sensor; from its pose when it has one, else unknown.
     angle_allowance_deg : float
-        How far the floor's normal may be from the expected up direction (seed 001 Eq. 1);
-        with the tilt unknown the allowance is at least 45 degrees.
+        How far the floor's normal may be from the expected up direction (seed 001 Eq. 1).
+        With the tilt unknown the allowance is at least 45 degrees around an upright
+        camera's up, and if no floor is found there, 30 degrees around a camera pitched
+        50 degrees down.
     inlier_m : float
         RANSAC inlier distance.
     max_angle_diff_deg, max_offset_diff_m : float
@@ -413,7 +417,7 @@ class DetectorConfig(StrictModel):
     voxel_size_m: float = Field(0.06, ge=0.01, le=0.5)
     min_points: int | None = Field(None, ge=1, le=100_000)
     heads_minimum_distance_m: float = Field(0.3, gt=0.0, le=2.0)
-    min_size_m: float = Field(0.06, ge=0.0, le=5.0)
+    min_size_m: float = Field(0.1, ge=0.0, le=5.0)
     max_size_m: float = Field(1.0, gt=0.0, le=10.0)
     min_area_m2: float = Field(0.008, ge=0.0, le=10.0)
     max_area_m2: float = Field(0.8, gt=0.0, le=50.0)
@@ -791,6 +795,17 @@ class NetworkConfig(StrictModel):
         if twice:
             raise ValueError(f"output names must be unique; repeated: {', '.join(twice)}")
         simulated = [s.id for s in self.sensors if s.source == "sim"]
+        if self.sim is not None and self.sim.sensor_model == "rgbd":
+            if self.sim.use_scenario_sensors:
+                raise ValueError(
+                    "sim.use_scenario_sensors must be false with sim.sensor_model 'rgbd': "
+                    "a detector node renders each of the network's own sim sensors"
+                )
+            if not simulated:
+                raise ValueError(
+                    "sim.sensor_model 'rgbd' needs sensors with source 'sim' to render "
+                    "(none listed)"
+                )
         if simulated and self.sim is None:
             raise ValueError(
                 f"sensors {', '.join(simulated)} have source 'sim' but there is no 'sim' section"

@@ -72,6 +72,27 @@ def _empty(n: int) -> Blobs:
     return Blobs(np.full(n, -1, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 2)), z, z, z, z, z)
 
 
+def _fill_holes(top: np.ndarray) -> np.ndarray:
+    """The height map with single-cell holes filled (sparse far returns are not dips).
+
+    An empty cell between two occupied opposite neighbours (in a row, a column or a
+    diagonal) takes the lower of the two; wider gaps stay empty and occupied cells keep
+    their height, so the dip between two close heads is not bridged.
+    """
+    p = np.pad(top, 1, constant_values=-np.inf)
+    rows, cols = top.shape
+    bridged = np.full(top.shape, -np.inf)
+    for (a0, b0), (a1, b1) in (
+        ((0, 1), (2, 1)),
+        ((1, 0), (1, 2)),
+        ((0, 0), (2, 2)),
+        ((0, 2), (2, 0)),
+    ):
+        across = np.minimum(p[a0 : a0 + rows, b0 : b0 + cols], p[a1 : a1 + rows, b1 : b1 + cols])
+        bridged = np.maximum(bridged, across)
+    return np.where(np.isfinite(top), top, bridged)
+
+
 class HeadClusterer:
     """Clusters floor-frame points into person blobs.
 
@@ -98,7 +119,11 @@ class HeadClusterer:
     """Depth of the cap below a peak that must stay as small as a head."""
     CAP_REACH_M = 0.3
     """Farthest a head's cap may reach from its peak."""
-    PROMINENCE_M = 0.1
+    PROMINENCE_M = 0.15
+    ABOVE_HEAD_M = 0.05
+    """Cells higher than their nearest head by more than this are not that person's."""
+    GAP_CELLS = 2
+    """Longest run of empty cells between two peaks that is not itself a gap between people."""
     """Between two people's heads the height map dips at least this much."""
 
     CUT_MARGIN_M = 0.08
@@ -129,6 +154,9 @@ class HeadClusterer:
         # Local-maximum window: about half the head spacing on each side.
         half = max(1, round(0.5 * heads_minimum_distance_m / cell_m))
         self._window = 2 * half + 1
+        # Cells closer than about twice the cell size belong together (OpenPTrack's
+        # cluster tolerance is twice its voxel): bridges layered or sparse far returns.
+        self._bridge = np.ones((5, 5), bool)
 
     def cluster(self, xyz: np.ndarray) -> Blobs:
         """Blobs of ``(n, 3)`` points ``(x, y, height)`` in a floor-aligned frame."""
@@ -147,7 +175,7 @@ class HeadClusterer:
         top = top.reshape(rows, cols)
         occupied = np.isfinite(top)
         components, count = ndimage.label(
-            ndimage.binary_dilation(occupied, np.ones((3, 3), bool)), np.ones((3, 3), int)
+            ndimage.binary_dilation(occupied, self._bridge), np.ones((3, 3), int)
         )
         components[~occupied] = 0
         if count == 0:
@@ -176,7 +204,7 @@ class HeadClusterer:
         pi, pj, comp, height = pi[order], pj[order], comp[order], height[order]
         heads: list[tuple[int, float, float]] = []  # (component, i, j)
         # single-cell holes of sparse far returns are not dips
-        filled = ndimage.maximum_filter(top, size=3, mode="constant", cval=-np.inf)
+        filled = _fill_holes(top)
         min_d2 = (self.heads_minimum_distance_m / cell) ** 2
         start = 0
         for end in np.append(np.flatnonzero(np.diff(comp)) + 1, len(comp)):
@@ -200,6 +228,9 @@ class HeadClusterer:
         d2[cc[:, None] != head_comp[None, :]] = np.inf
         best = np.argmin(d2, axis=1)
         has = np.isfinite(d2[np.arange(len(ci)), best]) & rounded[best]
+        # nothing of a person stands above their head (a cupboard beside them does)
+        head_top = top[head_ij[:, 0].astype(int), head_ij[:, 1].astype(int)]
+        has &= top[ci, cj] <= head_top[best] + self.ABOVE_HEAD_M
         out[ci[has], cj[has]] = best[has]
         return out
 
@@ -208,6 +239,8 @@ class HeadClusterer:
 
         A shoulder or a raised arm rises towards its own head without a dip; between two
         people the surface drops at least :attr:`PROMINENCE_M` below the lower peak.
+        Only observed cells count: empty cells on the way are unseen (hidden behind the
+        head, say), not low — unless the gap is wider than :attr:`GAP_CELLS` cells.
         Peaks farther apart than twice the head distance are always separate.
         """
         di, dj = other[0] - head[0], other[1] - head[1]
@@ -217,7 +250,13 @@ class HeadClusterer:
         f = np.linspace(0.0, 1.0, steps + 1)[1:-1]
         ii = np.rint(head[0] + f * di).astype(int)
         jj = np.rint(head[1] + f * dj).astype(int)
-        saddle = top[ii, jj].min() if len(ii) else np.inf
+        line = top[ii, jj]
+        seen = np.isfinite(line)
+        if not seen.all():
+            gap = np.diff(np.flatnonzero(np.concatenate(([True], seen, [True])))).max() - 1
+            if gap > self.GAP_CELLS:
+                return True
+        saddle = line[seen].min() if seen.any() else np.inf
         return bool(saddle < top[other] - self.PROMINENCE_M)
 
     def _is_head(self, top: np.ndarray, i: int, j: int) -> bool:

@@ -36,7 +36,7 @@ import numpy as np
 from openptrack_py.config import DetectorConfig
 from openptrack_py.detection.appearance import hue_histograms
 from openptrack_py.detection.background import BackgroundModel, voxel_keys
-from openptrack_py.detection.clustering import HeadClusterer
+from openptrack_py.detection.clustering import Blobs, HeadClusterer
 from openptrack_py.detection.frame import Frame, Intrinsics
 from openptrack_py.detection.ground import GroundPlane, GroundTracker
 from openptrack_py.geometry import apply, invert
@@ -299,10 +299,7 @@ class PeopleDetector:
                 np.maximum.at(far, blobs.labels[member], pts[sel[member], 2])
                 keep = far < self.max_distance_m - RANGE_CUT_M
                 if pixels is not None:
-                    # Blobs touching the top of the image were cut by the field of view.
-                    high = np.full(len(blobs), np.iinfo(np.int64).max)
-                    np.minimum.at(high, blobs.labels[member], pixels[sel[member], 1])
-                    keep &= high > 0
+                    keep &= ~self._top_on_border(blobs, floor_pts, pixels[sel])
                 blobs = blobs.select(keep)
         if len(blobs) == 0:
             return DetectionResult((), self.frame_id, plane, timings, "empty")
@@ -313,6 +310,20 @@ class PeopleDetector:
             with stage("hog"):
                 people, hog_mode = self._hog_check(frame, people)
         return DetectionResult(tuple(people), self.frame_id, plane, timings, "ok", hog_mode)
+
+    @staticmethod
+    def _top_on_border(blobs: Blobs, floor_pts: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+        """Per blob: whether its highest point lies in the image's top row.
+
+        Then its real top is out of view — a wall cut by the top of the image looks like
+        a head there — and its height cannot be measured: such blobs are dropped.
+        """
+        member = np.flatnonzero(blobs.labels >= 0)
+        labels = blobs.labels[member]
+        best = np.full(len(blobs), -1)
+        order = np.argsort(floor_pts[member, 2])  # ascending: the last write is the top
+        best[labels[order]] = member[order]
+        return pixels[best, 1] == 0
 
     def _describe(
         self,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -30,7 +31,9 @@ def source_for_sensor(cfg: NetworkConfig, sensor: SensorConfig, spec: str | None
     """Open the frame source of a network's sensor.
 
     ``sim`` sensors render the network's scenario (``sim.sensor_model: rgbd``); ``camera``
-    and ``recording`` sensors open ``spec`` or the sensor's ``input``.
+    and ``recording`` sensors open ``spec`` or the sensor's ``input``. A recorded folder
+    replays in real time at the sensor's rate (its frames keep their recorded stamps;
+    the tracker's clock alignment absorbs the offset).
 
     Raises
     ------
@@ -60,6 +63,9 @@ def source_for_sensor(cfg: NetworkConfig, sensor: SensorConfig, spec: str | None
             f"sensors.{sensor.id}.input: a {sensor.source} sensor needs an input "
             "(realsense[:SERIAL], azure-kinect[:N], a .bag, a folder or a cloud file)"
         )
+    if sensor.source == "recording" and Path(spec).is_dir():
+        # a recorded folder replays at the sensor's rate, as the sensor delivered it
+        return open_source(spec, rate_hz=cfg.detector.rate_hz or sensor.rate_hz or 30.0)
     return open_source(spec)
 
 

@@ -6,7 +6,8 @@ detections are matched one-to-one (Hungarian, on floor distance, within
 ``match_radius_m``) to the people present.
 
 A person **should be found** when at least half of their head and ``min_visible`` of
-their body show in the image and they stand within the sensor's range. A detection
+their body show in the image and their whole body lies within the detector's depth
+limit. A detection
 matched to a person who should be found is a true positive; one matched to a person
 who is barely visible (hidden behind others, cut by the image border) is neither
 rewarded nor punished; any other detection is a false positive. Recall is over the
@@ -22,8 +23,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from openptrack_py.config import DetectorConfig, SensorConfig
-from openptrack_py.detection.pipeline import PeopleDetector
-from openptrack_py.geometry import world_from_optical
+from openptrack_py.detection.pipeline import RANGE_CUT_M, PeopleDetector
+from openptrack_py.geometry import apply, world_from_optical
 from openptrack_py.sim.depth_source import scenario_world
 from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.scenarios import Scenario, build_scenario
@@ -186,8 +187,10 @@ def evaluate_detector(
             t0 = time.perf_counter()
             result = detector.detect(shot.frame)
             elapsed = time.perf_counter() - t0
-            origin = renderer.origin[:2]
-            in_range = np.linalg.norm(snap.pos - origin, axis=1) <= reach - 0.3
+            # the whole body within the depth limit (the detector drops cut blobs)
+            centre = np.column_stack([snap.pos, snap.height / 2])
+            depth = apply(renderer.camera_from_world, centre)[:, 2]
+            in_range = depth + snap.radius + RANGE_CUT_M <= reach
             with np.errstate(invalid="ignore", divide="ignore"):
                 head_share = shot.head_visible / np.maximum(shot.head_pixels, 1)
                 body_share = shot.visible_pixels / np.maximum(shot.body_pixels, 1)

@@ -9,7 +9,8 @@ The scene:
 
 * **static**: floor, four walls (3 m high) and a ceiling, and the room's furniture as
   boxes. Cast once per sensor, since neither moves.
-* **people**: seven ellipsoids each — head, torso, hips, two arms and two legs — sized
+* **people**: eight ellipsoids each — head, torso, shoulders, hips, two arms and two
+  legs — sized
   from the person's stature and body radius (adults and children alike), facing their
   direction of motion, with legs and arms swinging while they walk. Clothing colours come
   from the world (``top_hue`` for torso and arms, ``bottom_hue`` for hips and legs).
@@ -74,8 +75,8 @@ DEPTH_NOISE: dict[str, DepthNoise] = {
 
 # Part kinds (which colour a part wears).
 _SKIN, _TOP, _BOTTOM = 0, 1, 2
-_PARTS = 7
-_PART_KIND = np.array([_SKIN, _TOP, _BOTTOM, _BOTTOM, _BOTTOM, _TOP, _TOP])
+_PARTS = 8
+_PART_KIND = np.array([_SKIN, _TOP, _BOTTOM, _BOTTOM, _BOTTOM, _TOP, _TOP, _TOP])
 
 # Surface albedo in the infrared (intensity image) per material.
 _IR_ALBEDO = {"skin": 0.55, "cloth": 0.7, "floor": 0.45, "wall": 0.8, "furniture": 0.5}
@@ -263,7 +264,7 @@ class DepthRenderer:
 
     @staticmethod
     def body_parts(snap: Snapshot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Ellipsoids of everyone's body: centres ``(n, 7, 3)``, axes ``(n, 7, 3, 3)``, radii.
+        """Ellipsoids of everyone's body: centres ``(n, 8, 3)``, axes ``(n, 8, 3, 3)``, radii.
 
         Axes are rotation matrices whose columns are the ellipsoid's principal directions
         in the world; radii are the semi-axis lengths along them.
@@ -317,6 +318,10 @@ class DepthRenderer:
         for k, sgn in ((5, 1.0), (6, -1.0)):
             joint = shoulder + side * (sgn * (0.85 * r + 0.2 * r))[:, None]
             limb(k, joint, 0.36 * h, 0.2 * r, -sgn * swing)
+        # the shoulder girdle: a flat span across the top of the torso to both arms
+        centres[:, 7] = shoulder
+        axes[:, 7] = upright
+        radii[:, 7] = np.column_stack([0.42 * r, 1.2 * r, 0.035 * h])
         return centres, axes, radii
 
     def _part_box(
