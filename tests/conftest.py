@@ -7,12 +7,14 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from openptrack_py.config import ZenohConfig
+from openptrack_py.sim.world import Snapshot
 
 ROOT = Path(__file__).resolve().parent.parent
 PROCS = Path(__file__).resolve().parent / "procs"
@@ -76,3 +78,26 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float = 15.0, what: str =
             return
         time.sleep(0.05)
     pytest.fail(f"timed out after {timeout_s} s waiting for {what or predicate}")
+
+
+def people_snapshot(
+    people: Sequence[tuple[float, ...]],
+    *,
+    t: float = 0.0,
+    vel: np.ndarray | None = None,
+    kind: str = "adult",
+) -> Snapshot:
+    """A world snapshot of people given as ``(x, y, height, radius, top_hue, bottom_hue)``."""
+    rows = np.array(people, dtype=float).reshape(-1, 6)
+    n = len(rows)
+    return Snapshot(
+        t=t,
+        ids=np.arange(1, n + 1),
+        kinds=np.array([kind] * n, dtype="<U5"),
+        pos=rows[:, :2].copy(),
+        vel=np.zeros((n, 2)) if vel is None else np.asarray(vel, dtype=float).reshape(n, 2),
+        height=rows[:, 2].copy(),
+        radius=rows[:, 3].copy(),
+        top_hue=rows[:, 4].copy(),
+        bottom_hue=rows[:, 5].copy(),
+    )

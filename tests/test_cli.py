@@ -14,7 +14,7 @@ from tests.conftest import ROOT, python_env
 
 SUBCOMMANDS = [
     "launch", "node", "status", "echo", "config", "eval", "scenarios", "show-config",
-    "record-sensor",
+    "record-sensor", "detect", "eval-detector",
 ]  # fmt: skip
 
 
@@ -59,9 +59,8 @@ def test_every_node_has_help(node: str) -> None:
 def test_unknown_node_lists_the_available_ones() -> None:
     result = _cli("node", "tracker-of-dreams")
     assert result.returncode == 2
-    assert "unknown node 'tracker-of-dreams' (available: output, record, sim, tracker)" in (
-        result.stderr
-    )
+    available = "detector, output, record, sim, tracker"
+    assert f"unknown node 'tracker-of-dreams' (available: {available})" in result.stderr
 
 
 def test_show_config_fills_defaults_and_applies_overrides() -> None:

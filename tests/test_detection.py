@@ -38,32 +38,13 @@ from openptrack_py.eval.detector import evaluate_detector
 from openptrack_py.geometry import apply, invert, world_from_optical
 from openptrack_py.sim.render import DepthRenderer, RenderedFrame
 from openptrack_py.sim.sensors import SensorSpec
-from openptrack_py.sim.world import Obstacle, Room, Snapshot
+from openptrack_py.sim.world import Obstacle, Room
+from tests.conftest import people_snapshot
 
 # --------------------------------------------------------------------------- helpers
 
 
-def _snap(
-    people: Sequence[tuple[float, ...]],
-    *,
-    t: float = 0.0,
-    vel: np.ndarray | None = None,
-    kind: str = "adult",
-) -> Snapshot:
-    """People given as ``(x, y, height, radius, top_hue, bottom_hue)``."""
-    rows = np.array(people, dtype=float).reshape(-1, 6)
-    n = len(rows)
-    return Snapshot(
-        t=t,
-        ids=np.arange(1, n + 1),
-        kinds=np.array([kind] * n, dtype="<U5"),
-        pos=rows[:, :2].copy(),
-        vel=np.zeros((n, 2)) if vel is None else np.asarray(vel, dtype=float).reshape(n, 2),
-        height=rows[:, 2].copy(),
-        radius=rows[:, 3].copy(),
-        top_hue=rows[:, 4].copy(),
-        bottom_hue=rows[:, 5].copy(),
-    )
+_snap = people_snapshot
 
 
 EMPTY = _snap([])

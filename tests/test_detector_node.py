@@ -51,7 +51,7 @@ from openptrack_py.sim.sensors import SensorSpec
 from openptrack_py.sim.world import Room, Snapshot
 from openptrack_py.transport import MemoryBus, Sample
 from openptrack_py.transport.zenoh_bus import ZenohBus
-from tests.conftest import ROOT, free_port, python_env, wait_for
+from tests.conftest import ROOT, free_port, people_snapshot, python_env, wait_for
 
 DEMO = ROOT / "config" / "demo.yaml"
 POSE = Pose(x=0.2, y=4.0, z=2.6, yaw_deg=0.0, pitch_deg=22.0)
@@ -76,19 +76,7 @@ CROWD_SENSORS = [
 
 
 def _snapshot() -> Snapshot:
-    rows = np.array(PEOPLE, dtype=float)
-    n = len(rows)
-    return Snapshot(
-        t=0.0,
-        ids=np.arange(1, n + 1),
-        kinds=np.array(["adult"] * n, dtype="<U5"),
-        pos=rows[:, :2].copy(),
-        vel=np.zeros((n, 2)),
-        height=rows[:, 2].copy(),
-        radius=rows[:, 3].copy(),
-        top_hue=rows[:, 4].copy(),
-        bottom_hue=rows[:, 5].copy(),
-    )
+    return people_snapshot(PEOPLE)
 
 
 def _rendered(n: int, seed: int = 0) -> list[Frame]:

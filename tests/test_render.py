@@ -7,8 +7,6 @@ rendered people against where they stand and what they wear. Every run is seeded
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 import pytest
 
@@ -17,7 +15,8 @@ from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.sim.render import DEPTH_NOISE, WALL_HEIGHT_M, DepthRenderer, RenderedFrame
 from openptrack_py.sim.sensors import SENSOR_TYPES, SensorSpec
-from openptrack_py.sim.world import Room, Snapshot
+from openptrack_py.sim.world import Room
+from tests.conftest import people_snapshot
 
 SIZES = {
     "kinect1": (320, 240),
@@ -29,21 +28,7 @@ SIZES = {
 # --------------------------------------------------------------------------- helpers
 
 
-def _snap(people: Sequence[tuple[float, ...]], t: float = 0.0) -> Snapshot:
-    """Still people given as ``(x, y, height, radius, top_hue, bottom_hue)``."""
-    rows = np.array(people, dtype=float).reshape(-1, 6)
-    n = len(rows)
-    return Snapshot(
-        t=t,
-        ids=np.arange(1, n + 1),
-        kinds=np.array(["adult"] * n, dtype="<U5"),
-        pos=rows[:, :2].copy(),
-        vel=np.zeros((n, 2)),
-        height=rows[:, 2].copy(),
-        radius=rows[:, 3].copy(),
-        top_hue=rows[:, 4].copy(),
-        bottom_hue=rows[:, 5].copy(),
-    )
+_snap = people_snapshot
 
 
 EMPTY = _snap([])

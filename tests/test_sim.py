@@ -45,6 +45,7 @@ from openptrack_py.sim.live import LivePlayer, scenario_from_network
 from openptrack_py.sim.scenarios import ShuttleDirector
 from openptrack_py.sim.world import Snapshot
 from openptrack_py.transport import MemoryBus
+from tests.conftest import people_snapshot
 
 # --------------------------------------------------------------------------- helpers
 
@@ -53,21 +54,7 @@ def _pose(x: float, y: float, z: float, yaw: float, pitch: float) -> Pose:
     return Pose(x=x, y=y, z=z, yaw_deg=yaw, pitch_deg=pitch)
 
 
-def _snap(people: Sequence[tuple[float, ...]]) -> Snapshot:
-    """Snapshot of still people given as ``(x, y, height, radius, top_hue, bottom_hue)``."""
-    rows = np.array(people, dtype=float).reshape(-1, 6)
-    n = len(rows)
-    return Snapshot(
-        t=0.0,
-        ids=np.arange(1, n + 1),
-        kinds=np.array(["adult"] * n, dtype="<U5"),
-        pos=rows[:, :2].copy(),
-        vel=np.zeros((n, 2)),
-        height=rows[:, 2].copy(),
-        radius=rows[:, 3].copy(),
-        top_hue=rows[:, 4].copy(),
-        bottom_hue=rows[:, 5].copy(),
-    )
+_snap = people_snapshot
 
 
 def _model(

@@ -771,7 +771,35 @@ class RealSenseBagSource(_SourceBase):
             self._reader.close()
 
 
-class RealSenseSource(_SourceBase):
+class _LiveSource(_SourceBase):
+    """A live device: frames stamped with the host's UNIX time at capture."""
+
+    _open: bool
+
+    def _capture(self) -> tuple[np.ndarray, np.ndarray | None] | None:
+        """Depth (metres) and colour of the next capture; ``None`` when it had no depth."""
+        raise NotImplementedError
+
+    def frames(self) -> Iterator[Frame]:
+        """Frames as the device delivers them, until :meth:`close`.
+
+        Yields
+        ------
+        Frame
+            Organised frames with depth in metres (NaN where zero) and RGB colour.
+        """
+        seq = 0
+        while self._open:
+            stamp = time.time()
+            captured = self._capture()
+            if captured is None:
+                continue
+            depth, color = captured
+            yield Frame(stamp=stamp, seq=seq, intrinsics=self.intrinsics, depth=depth, color=color)
+            seq += 1
+
+
+class RealSenseSource(_LiveSource):
     """A live RealSense camera through ``open3d.t.io.RealSenseSensor``.
 
     Depth is aligned to colour; stamps are the host's UNIX time at capture, so frames of
@@ -833,28 +861,16 @@ class RealSenseSource(_SourceBase):
         self._color_format = str(meta.color_format)
         self._open = True
 
-    def frames(self) -> Iterator[Frame]:
-        """Frames as the camera delivers them, until :meth:`close`.
-
-        Yields
-        ------
-        Frame
-            Organised frames with depth in metres (NaN where zero) and RGB colour.
-        """
-        seq = 0
-        while self._open:
-            try:
-                rgbd = self._sensor.capture_frame(True, True)
-            except RuntimeError as exc:
-                raise SourceError(f"{self.name}: capture failed ({_clean(exc)})") from None
-            stamp = time.time()
-            raw = _depth_from_o3d(rgbd.depth)
-            if raw is None:
-                continue
-            depth = _depth_to_metres(raw, self.depth_scale, self.name)
-            color = _rgb_from_o3d(rgbd.color, self._color_format)
-            yield Frame(stamp=stamp, seq=seq, intrinsics=self.intrinsics, depth=depth, color=color)
-            seq += 1
+    def _capture(self) -> tuple[np.ndarray, np.ndarray | None] | None:
+        try:
+            rgbd = self._sensor.capture_frame(True, True)
+        except RuntimeError as exc:
+            raise SourceError(f"{self.name}: capture failed ({_clean(exc)})") from None
+        raw = _depth_from_o3d(rgbd.depth)
+        if raw is None:
+            return None
+        depth = _depth_to_metres(raw, self.depth_scale, self.name)
+        return depth, _rgb_from_o3d(rgbd.color, self._color_format)
 
     def close(self) -> None:
         """Stop the capture."""
@@ -886,7 +902,7 @@ def _k4a_library_error() -> str | None:
     return reason
 
 
-class AzureKinectSource(_SourceBase):
+class AzureKinectSource(_LiveSource):
     """A live Azure Kinect through ``open3d.io.AzureKinectSensor`` (needs the k4a SDK).
 
     Depth is aligned to the colour camera. open3d does not expose the factory calibration,
@@ -945,40 +961,24 @@ class AzureKinectSource(_SourceBase):
             )
         self._open = True
 
-    def frames(self) -> Iterator[Frame]:
-        """Frames as the device delivers them, until :meth:`close`.
-
-        Yields
-        ------
-        Frame
-            Organised frames with depth in metres (NaN where zero) and RGB colour.
-        """
-        seq = 0
-        while self._open:
-            try:
-                rgbd = self._sensor.capture_frame(True)
-            except RuntimeError as exc:
-                raise SourceError(f"{self.name}: capture failed ({_clean(exc)})") from None
-            if rgbd is None:
-                continue
-            stamp = time.time()
-            raw = _depth_from_o3d(rgbd.depth)
-            if raw is None:
-                continue
-            if raw.dtype.kind == "f":  # already metres
-                depth = raw.astype(np.float32)
-                depth[~(depth > 0)] = np.nan
-            else:
-                depth = _depth_to_metres(raw, DEFAULT_DEPTH_SCALE, self.name)
-            if self.intrinsics is None:
-                height, width = depth.shape
-                fx = (width / 2) / math.tan(math.radians(_AZURE_KINECT_HFOV_DEG) / 2)
-                self.intrinsics = Intrinsics(
-                    width, height, fx, fx, (width - 1) / 2, (height - 1) / 2
-                )
-            color = _rgb_from_o3d(rgbd.color)
-            yield Frame(stamp=stamp, seq=seq, intrinsics=self.intrinsics, depth=depth, color=color)
-            seq += 1
+    def _capture(self) -> tuple[np.ndarray, np.ndarray | None] | None:
+        try:
+            rgbd = self._sensor.capture_frame(True)
+        except RuntimeError as exc:
+            raise SourceError(f"{self.name}: capture failed ({_clean(exc)})") from None
+        raw = None if rgbd is None else _depth_from_o3d(rgbd.depth)
+        if raw is None:
+            return None
+        if raw.dtype.kind == "f":  # already metres
+            depth = raw.astype(np.float32)
+            depth[~(depth > 0)] = np.nan
+        else:
+            depth = _depth_to_metres(raw, DEFAULT_DEPTH_SCALE, self.name)
+        if self.intrinsics is None:
+            height, width = depth.shape
+            fx = (width / 2) / math.tan(math.radians(_AZURE_KINECT_HFOV_DEG) / 2)
+            self.intrinsics = Intrinsics(width, height, fx, fx, (width - 1) / 2, (height - 1) / 2)
+        return depth, _rgb_from_o3d(rgbd.color)
 
     def close(self) -> None:
         """Disconnect the device."""
