@@ -91,6 +91,11 @@ class DetectorService:
         self.sensor = sensor
         self.source = source
         pose = world_from_optical(sensor.pose) if sensor.pose is not None else None
+        if pose is None:
+            node.log.warning(
+                "no pose: detections are reported in the sensor's floor frame",
+                extra={"fields": {"sensor": sensor.id, "calibration": str(sensor.calibration)}},
+            )
         self.detector = PeopleDetector(
             config,
             world_from_camera=pose,

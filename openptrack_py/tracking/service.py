@@ -26,6 +26,7 @@ from openptrack_py.messages.codec import (
     encode_track_batch,
 )
 from openptrack_py.messages.config_update import ConfigAck, ConfigUpdate
+from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.runtime.node import Inbox, Node, Received
 from openptrack_py.tracking.fusion import ClockAligner, TrackingPipeline
 from openptrack_py.tracking.tracker import build_tracker
@@ -55,6 +56,7 @@ class TrackerService:
             build_tracker(config), config.reorder_window_s, config.clock_correction
         )
         keys = node.keys
+        self._frame: str | None = None
         self._batches = node.subscribe(keys.detections("*"), decode_detection_batch, maxsize=1000)
         self._updates: Inbox[Received[ConfigUpdate]] = node.subscribe(
             keys.config(node.name), decode_config_update, maxsize=100
@@ -114,6 +116,28 @@ class TrackerService:
                 counters.inc(name, delta)
             self._reported[name] = value
 
+    def _in_frame(self, batch: DetectionBatch) -> bool:
+        """Whether a batch is in the frame being tracked (the first batch's frame).
+
+        Sensors with a pose report in ``world``; one without reports in its own floor
+        frame, which can be tracked alone but never fused with others: such batches are
+        counted as ``wrong_frame`` and dropped.
+        """
+        tracker = self.pipeline.tracker
+        if self._frame is None:
+            self._frame = tracker.frame_id = batch.frame_id
+        if batch.frame_id == self._frame:
+            return True
+        self.node.counters.inc("wrong_frame")
+        self.node.bad_input.warning(
+            f"frame:{batch.sensor_id}",
+            "batch in another frame than the one tracked: dropped",
+            sensor=batch.sensor_id,
+            frame=batch.frame_id,
+            tracked=self._frame,
+        )
+        return False
+
     def step_once(self, timeout_s: float | None = None) -> int:
         """Handle pending updates, then pending batches; return the number of steps."""
         for item in self._updates.drain(timeout=0):
@@ -121,7 +145,8 @@ class TrackerService:
         results = []
         with self.node.counters.timed("step"):
             for item in self._batches.drain(timeout=timeout_s):
-                results += self.pipeline.push(item.message, item.received)
+                if self._in_frame(item.message):
+                    results += self.pipeline.push(item.message, item.received)
             results += self.pipeline.poll(time.time())
         self._publish(results)
         self._report_counters()

@@ -267,6 +267,7 @@ class Tracker:
         self.time: float | None = None
         self.max_id = 0
         self.seq = 0
+        self.frame_id = "world"
         self.counters: dict[str, int] = dict.fromkeys(
             (
                 "steps",
@@ -344,6 +345,7 @@ class Tracker:
         self.time = other.time
         self.max_id = other.max_id
         self.seq = other.seq
+        self.frame_id = other.frame_id
         self.counters = other.counters
 
     def output(self, t: float) -> TrackBatch:
@@ -386,7 +388,7 @@ class Tracker:
         return TrackBatch(
             stamp=t,
             seq=self.seq,
-            frame_id="world",
+            frame_id=self.frame_id,
             tracks=tuple(tracks),
             alive_ids=tuple(tb.ids.tolist()),
             max_id=self.max_id,
