@@ -705,7 +705,7 @@ def build_parser() -> argparse.ArgumentParser:
         "sim:SCENARIO[:SENSOR] (rendered simulation).",
     )
     p.add_argument("input", help="cloud file, folder, .bag, device or sim:SCENARIO[:SENSOR]")
-    p.add_argument("--preset", choices=("adult", "child"), help="height band preset")
+    p.add_argument("--preset", choices=("adult", "child", "everyone"), help="height band preset")
     p.add_argument("--ground", help="'auto' (estimate the floor) or a plane a,b,c,d")
     p.add_argument("--sensor-type", default=None, help="kinect1|kinect2|realsense|sr4500")
     p.add_argument("--frames", type=int, metavar="N", help="stop after N frames")
@@ -729,7 +729,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
     p.add_argument("--sample-rate", type=float, default=2.0, help="instants scored per second")
     p.add_argument("--match-radius", type=float, default=0.3, help="match distance, metres")
-    p.add_argument("--preset", choices=("adult", "child"), help="height band preset")
+    p.add_argument("--preset", choices=("adult", "child", "everyone"), help="height band preset")
     p.add_argument("--detector-config", type=Path, help="YAML file of detector settings")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--format", choices=("json", "table"), default="table")

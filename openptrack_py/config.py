@@ -280,6 +280,7 @@ SAMPLING_FACTORS: dict[str, int] = {"kinect1": 1, "kinect2": 2, "realsense": 2, 
 HEIGHT_PRESETS: dict[str, tuple[float, float, float]] = {
     "adult": (1.0, 2.3, 1.3),
     "child": (0.5, 1.2, 0.7),
+    "everyone": (0.5, 2.3, 0.7),
 }
 """Per preset: height band of the points clustered (min, max) and the lowest blob top."""
 
@@ -371,9 +372,10 @@ class DetectorConfig(StrictModel):
 
     Parameters
     ----------
-    preset : {"adult", "child"}
-        Fills the height band: adult 1.0-2.3 m (blob top >= 1.3 m), child 0.5-1.2 m
-        (top >= 0.7 m, seed 000).
+    preset : {"adult", "child", "everyone"}
+        Fills the height band: adult 1.0-2.3 m (blob top >= 1.3 m, OpenPTrack's),
+        child 0.5-1.2 m (top >= 0.7 m, seed 000), everyone 0.5-2.3 m (top >= 0.7 m:
+        children and adults together).
     min_height_m, max_height_m : float, optional
         Height band above the floor whose points are clustered (preset if omitted).
     min_top_m : float, optional
@@ -408,7 +410,7 @@ class DetectorConfig(StrictModel):
         Sub-sections.
     """
 
-    preset: Literal["adult", "child"] = "adult"
+    preset: Literal["adult", "child", "everyone"] = "adult"
     min_height_m: float | None = Field(None, ge=0.0, le=3.0)
     max_height_m: float | None = Field(None, gt=0.0, le=4.0)
     min_top_m: float | None = Field(None, ge=0.0, le=4.0)

@@ -231,6 +231,9 @@ class HeadClusterer:
         # nothing of a person stands above their head (a cupboard beside them does)
         head_top = top[head_ij[:, 0].astype(int), head_ij[:, 1].astype(int)]
         has &= top[ci, cj] <= head_top[best] + self.ABOVE_HEAD_M
+        # nor farther from it than half the largest footprint (furniture they lean on)
+        reach = 0.5 * self.max_size_m / cell
+        has &= d2[np.arange(len(ci)), best] <= reach * reach
         out[ci[has], cj[has]] = best[has]
         return out
 

@@ -107,6 +107,15 @@ def match_frame(
     score.frames += 1
 
 
+MIXED_SCENARIOS = ("classroom", "installation")
+"""Scenarios with children among the people: scored with the ``everyone`` preset."""
+
+
+def detector_config_for(scenario: str) -> DetectorConfig:
+    """Detector settings for a scenario: ``everyone`` with children present, else ``adult``."""
+    return DetectorConfig(preset="everyone" if scenario in MIXED_SCENARIOS else "adult")
+
+
 def scenario_for_sensor_type(
     name: str, seed: int, sensor_type: str, duration_s: float | None
 ) -> Scenario:
@@ -145,8 +154,7 @@ def evaluate_detector(
     sample_hz : float
         Instants evaluated per second (each renders every sensor).
     config : DetectorConfig, optional
-        Detector settings; for ``classroom`` the ``child`` preset with the band raised
-        to 2.3 m (the teacher counts too), else ``adult``.
+        Detector settings; :func:`detector_config_for` the scenario if omitted.
     match_radius_m : float
         Largest floor distance of a match.
     min_visible : float
@@ -158,11 +166,7 @@ def evaluate_detector(
         ``recall, precision, mean_error_m, p95_error_m``, counts, and per-sensor figures.
     """
     if config is None:
-        config = (
-            DetectorConfig(preset="child", max_height_m=2.3)  # children and their teacher
-            if scenario == "classroom"
-            else DetectorConfig()
-        )
+        config = detector_config_for(scenario)
     sc = scenario_for_sensor_type(scenario, seed, sensor_type, duration_s)
     world = scenario_world(sc)
     kind = SENSOR_TYPES[sensor_type]
