@@ -122,6 +122,10 @@ class HeadClusterer:
     PROMINENCE_M = 0.15
     ABOVE_HEAD_M = 0.05
     """Cells higher than their nearest head by more than this are not that person's."""
+    SHOULDER_REACH_M = 0.36
+    """Farthest a shoulder's or raised arm's peak stands from its own head."""
+    FAR_PROMINENCE_M = 0.06
+    """Dip enough between peaks farther apart than :attr:`SHOULDER_REACH_M`."""
     GAP_CELLS = 2
     """Longest run of empty cells between two peaks that is not itself a gap between people."""
     """Between two people's heads the height map dips at least this much."""
@@ -260,7 +264,11 @@ class HeadClusterer:
             if gap > self.GAP_CELLS:
                 return True
         saddle = line[seen].min() if seen.any() else np.inf
-        return bool(saddle < top[other] - self.PROMINENCE_M)
+        # a shoulder stands at most about SHOULDER_REACH_M from its head; beyond, a
+        # shallower dip is enough (side by side, shoulders overlap between the heads)
+        far = (di * di + dj * dj) * self.cell_m**2 > self.SHOULDER_REACH_M**2
+        prominence = self.FAR_PROMINENCE_M if far else self.PROMINENCE_M
+        return bool(saddle < top[other] - prominence)
 
     def _is_head(self, top: np.ndarray, i: int, j: int) -> bool:
         """Whether a height peak is a head's crown rather than a flat or long top.
