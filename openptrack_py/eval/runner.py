@@ -279,7 +279,17 @@ def evaluate(
     """
     if scenario.duration_s is None:
         raise ValueError("evaluate: the scenario needs a finite duration_s")
-    sim = Simulator(scenario, ground_truth_rate_hz=ground_truth_rate_hz, sensor_model=sensor_model)
+    detector = None
+    if sensor_model == "rgbd":
+        from openptrack_py.eval.detector import detector_config_for
+
+        detector = detector_config_for(scenario.name)
+    sim = Simulator(
+        scenario,
+        ground_truth_rate_hz=ground_truth_rate_hz,
+        sensor_model=sensor_model,
+        detector_config=detector,
+    )
     acc = MotAccumulator(max_distance_m)
     batches = 0
     start = time.perf_counter()
