@@ -126,3 +126,14 @@ def test_sensor_clock_offsets_do_not_shift_the_evaluation() -> None:
 def test_evaluate_needs_a_finite_scenario() -> None:
     with pytest.raises(ValueError, match="finite duration"):
         evaluate(build_scenario("crowd", duration_s=None), _truth())
+
+
+@pytest.mark.slow
+def test_rgbd_evaluation_tracks_through_the_real_detector_children_included() -> None:
+    """Rendered sensors and the real detector in the loop: visitors, a child among them."""
+    from openptrack_py.eval.trackers import run_eval
+
+    scenario = build_scenario("installation", seed=0, duration_s=12.0)
+    scores = run_eval(scenario, sensor_model="rgbd").to_dict()
+    assert scores["mota"] >= 0.9 and scores["idf1"] >= 0.85, scores
+    assert scores["id_switches"] == 0
