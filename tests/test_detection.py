@@ -8,7 +8,10 @@ rates are measured over many varied frames and asserted with their floor.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+import subprocess
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -39,7 +42,7 @@ from openptrack_py.geometry import apply, invert, world_from_optical
 from openptrack_py.sim.render import DepthRenderer, RenderedFrame
 from openptrack_py.sim.sensors import SensorSpec
 from openptrack_py.sim.world import Obstacle, Room
-from tests.conftest import people_snapshot
+from tests.conftest import ROOT, people_snapshot, python_env
 
 # --------------------------------------------------------------------------- helpers
 
@@ -584,3 +587,33 @@ def test_detector_evaluation_floor(scenario: str) -> None:
     assert score["recall"] >= 0.95
     assert score["precision"] >= 0.95
     assert score["mean_error_m"] <= 0.10
+
+
+def test_detect_command_reads_a_kinect_style_pcd_without_pose(tmp_path: Path) -> None:
+    """``openptrack detect cloud.pcd --ground auto --format json`` as a user runs it."""
+    o3d = pytest.importorskip("open3d")
+    people = _snap([(2.8, 4.4, 1.65, 0.21, 0, 100), (4.2, 5.6, 1.85, 0.24, 120, 200)])
+    shot = _renderer(SENSOR, ROOM, seed=9).render(people)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(_optical_points(shot.frame)))
+    path = tmp_path / "kinect.pcd"
+    assert o3d.io.write_point_cloud(str(path), cloud)
+    run = subprocess.run(
+        [sys.executable, "-m", "openptrack_py.cli", "detect", str(path), "--ground", "auto",
+         "--format", "json"],
+        capture_output=True, text=True, timeout=120, env=python_env(), cwd=ROOT,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    (record,) = [json.loads(line) for line in run.stdout.splitlines()]
+    assert record["status"] == "ok" and record["ground_source"] == "auto"
+    *normal, offset = record["ground"]
+    truth = GroundPlane.from_world_pose(world_from_optical(SENSOR))
+    assert offset == pytest.approx(SENSOR.z, abs=0.03)  # the camera's height above the floor
+    assert math.degrees(math.acos(min(1.0, float(np.dot(normal, truth.normal))))) < 1.0
+    heights = sorted(det["height"] for det in record["detections"])
+    np.testing.assert_allclose(heights, sorted(people.height), atol=0.1)
+    found = np.array([det["position"][:2] for det in record["detections"]])
+    gap = np.linalg.norm(people.pos[0] - people.pos[1])
+    assert np.linalg.norm(found[0] - found[1]) == pytest.approx(gap, abs=0.15)
+    for det in record["detections"]:  # optical frame: z forward, the same range
+        assert det["sensor_position"][2] > 0
+        assert np.linalg.norm(det["sensor_position"]) == pytest.approx(det["distance"], abs=1e-3)
