@@ -118,6 +118,8 @@ class HeadClusterer:
     CAP_DEPTH_M = 0.06
     """Depth of the cap below a peak that must stay as small as a head."""
     CAP_REACH_M = 0.3
+    LEVEL_CELLS_FACTOR = 3.0
+    """Cells at a peak's level within twice the cap reach, in head crowns (0.12 m radius)."""
     """Farthest a head's cap may reach from its peak."""
     PROMINENCE_M = 0.15
     ABOVE_HEAD_M = 0.05
@@ -278,7 +280,9 @@ class HeadClusterer:
         cap up to :attr:`CAP_REACH_M` from the peak is a head; up to twice that (depth
         noise blurs far heads into their shoulders), a head only if the ring 0.15-0.3 m
         around the peak lies, by its median, :attr:`CAP_DEPTH_M` lower (shoulders);
-        anything larger is not a head. ``top`` has single-cell holes filled.
+        anything larger is not a head; so is a peak with many cells at its level around
+        it (more than :attr:`LEVEL_CELLS_FACTOR` head crowns). ``top`` has single-cell
+        holes filled.
         """
         reach = self.CAP_REACH_M / self.cell_m
         span = int(np.ceil(2 * reach)) + 1
@@ -290,6 +294,11 @@ class HeadClusterer:
         di, dj = np.arange(window.shape[0])[:, None] + i0 - i, np.arange(window.shape[1]) + j0 - j
         d2 = di * di + dj * dj
         far = float(d2[ci, cj].max())
+        # Many cells at the peak's level around it, connected or not, are a flat top
+        # broken up by occlusion (a plinth behind a visitor), not a head.
+        level = (np.abs(window - peak) <= self.CAP_DEPTH_M) & (d2 <= 4 * reach * reach)
+        if np.count_nonzero(level) > self.LEVEL_CELLS_FACTOR * np.pi * (0.12 / self.cell_m) ** 2:
+            return False
         if far <= reach * reach:
             return True
         if far > 4 * reach * reach:
