@@ -53,10 +53,10 @@ the harness's ``HypothesisFeed`` protocol. Every configuration choice:
   a detection inside an existing track's gate, and its tentative tracks take only the
   detections its confirmed tracks left.
 * **Deletion** (our rules, as small ``Deleter`` subclasses): a holding track goes
-  ``sec_before_fake`` (2.4 s) after its first detection (:class:`AgeDeleter`) or, when
-  ``TrackerConfig`` has ``tentative_timeout_s`` (0.5 s), after that long without a
-  detection (:class:`LastUpdateDeleter`), the two joined by ``CompositeDeleter(...,
-  intersect=False)``: ours deletes a tentative track on either rule. A confirmed
+  ``sec_before_fake`` (2.4 s) after its first detection (:class:`AgeDeleter`) or
+  ``tentative_timeout_s`` (0.5 s) without a detection (:class:`LastUpdateDeleter`),
+  the two joined by ``CompositeDeleter(..., intersect=False)``: ours deletes a
+  tentative track on either rule. A confirmed
   track goes after ``sec_before_old`` (3 s) without an update by a detection at least
   ``min_confidence_initialization`` confident (:class:`LastUpdateDeleter`; ours: "only
   confident detections keep a track alive"). With Stone Soup's ``UpdateTimeDeleter``
@@ -101,7 +101,6 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta, timezone
 
 import numpy as np
-from scipy.stats import chi2
 from stonesoup.base import Property
 from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
 from stonesoup.deleter.base import Deleter
@@ -129,6 +128,7 @@ from openptrack_py.config import TrackerConfig
 from openptrack_py.eval.runner import Hypotheses, TrackerFeed, evaluate
 from openptrack_py.eval.trackers import tracking_feed
 from openptrack_py.sim import SensorFrame, TruthFrame, build_scenario
+from openptrack_py.tracking import ChiSquareGater
 
 SEEDS = (0, 1, 2)
 TYPICAL_RANGE_M = 6.3
@@ -193,6 +193,11 @@ def measurement_sigma(cfg: TrackerConfig, distance_m: float = TYPICAL_RANGE_M) -
     return cfg.measurement_sigma_m + cfg.measurement_sigma_per_m2 * distance_m**2
 
 
+def missed_distance(cfg: TrackerConfig) -> float:
+    """Our floor-position gate as a Mahalanobis distance (the root of its threshold)."""
+    return math.sqrt(ChiSquareGater(cfg.gate_probability, 2).threshold)
+
+
 def build_stonesoup(cfg: TrackerConfig, stock_deleter: bool = False) -> tuple:
     """A Stone Soup tracker with our model; returns ``(tracker, measurement_model)``."""
     q = cfg.acceleration_variance
@@ -208,19 +213,17 @@ def build_stonesoup(cfg: TrackerConfig, stock_deleter: bool = False) -> tuple:
         predictor,
         updater,
         measure=Mahalanobis(),
-        missed_distance=math.sqrt(chi2.ppf(cfg.gate_probability, 2)),
+        missed_distance=missed_distance(cfg),
     )
     fake, old = timedelta(seconds=cfg.sec_before_fake), timedelta(seconds=cfg.sec_before_old)
     if stock_deleter:
         holding_deleter, deleter = UpdateTimeDeleter(fake), UpdateTimeDeleter(old)
     else:
-        holding_deleter = AgeDeleter(fake)
-        timeout = getattr(cfg, "tentative_timeout_s", None)
-        if timeout is not None:  # ours also drops a tentative track unseen this long
-            unseen = LastUpdateDeleter(
-                timedelta(seconds=timeout), cfg.min_confidence_initialization
-            )
-            holding_deleter = CompositeDeleter([holding_deleter, unseen], intersect=False)
+        # ours also drops a tentative track unseen for tentative_timeout_s
+        unseen = LastUpdateDeleter(
+            timedelta(seconds=cfg.tentative_timeout_s), cfg.min_confidence_initialization
+        )
+        holding_deleter = CompositeDeleter([AgeDeleter(fake), unseen], intersect=False)
         deleter = LastUpdateDeleter(old, cfg.min_confidence_initialization)
     v2 = cfg.initial_velocity_sigma_mps**2
     prior = GaussianState(
@@ -367,15 +370,17 @@ def run_seed(
     seed: int, duration_s: float | None, publish_unseen_s: float, stock_deleter: bool
 ) -> dict[str, object]:
     cfg = TrackerConfig()
-    length = -1.0 if duration_s is None else duration_s
+    scenario = build_scenario(
+        "crowd", seed=seed, duration_s=-1.0 if duration_s is None else duration_s
+    )
 
     ours_feed = DigestingFeed(tracking_feed(cfg))
-    ours = evaluate(build_scenario("crowd", seed=seed, duration_s=length), ours_feed)
+    ours = evaluate(scenario, ours_feed)
     inner = ours_feed.inner
     ours_ms = 1e3 * inner.step_seconds / max(inner.steps, 1)
 
     ss_feed = StoneSoupFeed(cfg, publish_unseen_s=publish_unseen_s, stock_deleter=stock_deleter)
-    ss = evaluate(build_scenario("crowd", seed=seed, duration_s=length), ss_feed)
+    ss = evaluate(scenario, ss_feed)
     ss_ms = 1e3 * ss_feed.step_seconds / max(ss_feed.steps, 1)
     return {
         "seed": seed,
@@ -415,17 +420,13 @@ def main(
                 "filter": "UKF alpha=1 beta=2 kappa=0",
                 "q": cfg.acceleration_variance,
                 "measurement_sigma_m": round(measurement_sigma(cfg), 4),
-                "missed_distance": round(math.sqrt(chi2.ppf(cfg.gate_probability, 2)), 4),
+                "missed_distance": round(missed_distance(cfg), 4),
                 "min_points": cfg.detections_to_validate,
                 "holding_deleter": (
                     f"UpdateTimeDeleter({cfg.sec_before_fake} s)"
                     if stock_deleter
                     else f"AgeDeleter({cfg.sec_before_fake} s)"
-                    + (
-                        f" or LastUpdateDeleter({cfg.tentative_timeout_s} s)"
-                        if hasattr(cfg, "tentative_timeout_s")
-                        else ""
-                    )
+                    f" or LastUpdateDeleter({cfg.tentative_timeout_s} s)"
                 ),
                 "deleter": (
                     f"UpdateTimeDeleter({cfg.sec_before_old} s)"

@@ -338,8 +338,7 @@ def _cell(value: object) -> str:
 
 def format_table(rows: Sequence[dict[str, object]], columns: Sequence[str]) -> str:
     """Render result dicts as a fixed-width text table."""
-    cell = _cell
-    body = [[cell(r.get(c)) for c in columns] for r in rows]
+    body = [[_cell(r.get(c)) for c in columns] for r in rows]
     widths = [max(len(c), *(len(b[i]) for b in body)) for i, c in enumerate(columns)]
     lines = ["  ".join(c.rjust(w) for c, w in zip(columns, widths, strict=True))]
     lines += ["  ".join(v.rjust(w) for v, w in zip(b, widths, strict=True)) for b in body]

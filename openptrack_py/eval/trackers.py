@@ -10,7 +10,7 @@ from openptrack_py.errors import ConfigError
 from openptrack_py.eval.runner import EvalResult, HypothesisFeed, TrackerFeed, TruthFeed, evaluate
 from openptrack_py.sim.scenarios import Scenario, build_scenario
 from openptrack_py.sim.simulator import DEFAULT_START_TIME
-from openptrack_py.tracking import TrackingPipeline, build_tracker
+from openptrack_py.tracking import TrackingPipeline
 
 FeedFactory = Callable[[Path | None, Sequence[str]], HypothesisFeed]
 
@@ -35,10 +35,7 @@ def load_tracker_config(path: Path | None = None, overrides: Sequence[str] = ())
 
 def tracking_feed(config: TrackerConfig) -> TrackerFeed:
     """A feed running the tracker with this configuration behind its fusion pipeline."""
-    pipeline = TrackingPipeline(
-        build_tracker(config), config.reorder_window_s, config.clock_correction
-    )
-    return TrackerFeed(pipeline)
+    return TrackerFeed(TrackingPipeline.from_config(config))
 
 
 def _ukf(config: Path | None, overrides: Sequence[str]) -> HypothesisFeed:

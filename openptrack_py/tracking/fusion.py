@@ -24,9 +24,10 @@ import statistics
 from collections import deque
 from dataclasses import dataclass, field, replace
 
+from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.track import TrackBatch
-from openptrack_py.tracking.tracker import Tracker
+from openptrack_py.tracking.tracker import Tracker, build_tracker
 
 
 @dataclass
@@ -168,7 +169,17 @@ class TrackingPipeline:
         self.tracker = tracker
         self.buffer = ReorderBuffer(window_s)
         self.aligner = ClockAligner() if clock_correction == "arrival" else None
-        self.late = 0
+
+    @classmethod
+    def from_config(cls, config: TrackerConfig) -> TrackingPipeline:
+        """The tracker of ``config`` behind its reorder window and clock correction."""
+        return cls(build_tracker(config), config.reorder_window_s, config.clock_correction)
+
+    @property
+    def late(self) -> int:
+        """Batches captured before one already applied (replayed or dropped)."""
+        counters = self.tracker.counters
+        return counters["late_applied"] + counters["late_dropped"]
 
     def push(
         self, batch: DetectionBatch, arrival: float
@@ -193,9 +204,4 @@ class TrackingPipeline:
         return self._run(self.buffer.flush())
 
     def _run(self, batches: list[DetectionBatch]) -> list[tuple[DetectionBatch, TrackBatch]]:
-        out = []
-        for batch in batches:
-            if self.tracker.time is not None and batch.stamp < self.tracker.time:
-                self.late += 1
-            out.append((batch, self.tracker.step(batch)))
-        return out
+        return [(batch, self.tracker.step(batch)) for batch in batches]

@@ -39,23 +39,12 @@ class ConstantVelocity:
                 f"got {self.acceleration_variance}"
             )
 
-    ndim = 4
-
     @staticmethod
     def fx(sigmas: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """Move sigma points ``(N, k, 4)`` forward by ``dt (N,)``."""
         out = sigmas.copy()
         out[..., 0:2] += dt[:, None, None] * sigmas[..., 2:4]
         return out
-
-    @staticmethod
-    def transition(dt: np.ndarray) -> np.ndarray:
-        """Transition matrices ``(N, 4, 4)``."""
-        dt = np.atleast_1d(np.asarray(dt, dtype=float))
-        f = np.broadcast_to(np.eye(4), (len(dt), 4, 4)).copy()
-        f[:, 0, 2] = dt
-        f[:, 1, 3] = dt
-        return f
 
     def noise(self, dt: np.ndarray) -> np.ndarray:
         """Process noise ``(N, 4, 4)`` for steps ``dt``."""

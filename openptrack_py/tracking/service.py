@@ -52,9 +52,7 @@ class TrackerService:
         self.node = node
         self.config = config
         self.idle_s = idle_s
-        self.pipeline = TrackingPipeline(
-            build_tracker(config), config.reorder_window_s, config.clock_correction
-        )
+        self.pipeline = TrackingPipeline.from_config(config)
         keys = node.keys
         self._frame: str | None = None
         self._batches = node.subscribe(keys.detections("*"), decode_detection_batch, maxsize=1000)
