@@ -51,9 +51,14 @@ def _string(text: str) -> str:
     return json.dumps(text, ensure_ascii=False).replace("/", "\\/")
 
 
-def _header(seq: int, stamp: float, frame_id: str) -> str:
+def sec_nsec(stamp: float) -> tuple[int, int]:
+    """``stamp`` (seconds) as ROS-style whole seconds and nanoseconds."""
     sec = math.floor(stamp)
-    nsec = min(round((stamp - sec) * 1e9), 999_999_999)
+    return sec, min(round((stamp - sec) * 1e9), 999_999_999)
+
+
+def _header(seq: int, stamp: float, frame_id: str) -> str:
+    sec, nsec = sec_nsec(stamp)
     return (
         f'{{"header":{{"seq":{int(seq)},"stamp":{{"sec":{sec},"nsec":{nsec}}},'
         f'"frame_id":{_string(frame_id)}}}'
@@ -92,30 +97,24 @@ def encode_tracks(
     """
     if fmt not in FORMATS:
         raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
-    head = f'{_header(seq, stamp, frame_id)},"{FORMATS[fmt]}":['
-    tail = "]}"
-    extra = len(_NUL) if trailing_nul else 0
-    items = [_track(t, fmt == "opt-v2") for t in tracks]
+    head = f'{_header(seq, stamp, frame_id)},"{FORMATS[fmt]}":['.encode()
+    tail = b"]}" + (_NUL if trailing_nul else b"")
+    items = [_track(t, fmt == "opt-v2").encode() for t in tracks]
     out: list[bytes] = []
-    chunk: list[str] = []
-    size = len(head) + len(tail) + extra
+    chunk: list[bytes] = []
+    size = len(head) + len(tail)
     for item in items:
-        added = len(item.encode()) + (1 if chunk else 0)
+        added = len(item) + (1 if chunk else 0)
         if chunk and size + added > max_bytes:
-            out.append(_finish(head, chunk, tail, trailing_nul))
-            chunk, size = [], len(head) + len(tail) + extra
-            added = len(item.encode())
+            out.append(head + b",".join(chunk) + tail)
+            chunk, size = [], len(head) + len(tail)
+            added = len(item)
         if size + added > max_bytes:
             raise ValueError(f"one track needs more than max_bytes={max_bytes} bytes")
         chunk.append(item)
         size += added
-    out.append(_finish(head, chunk, tail, trailing_nul))
+    out.append(head + b",".join(chunk) + tail)
     return out
-
-
-def _finish(head: str, items: list[str], tail: str, trailing_nul: bool) -> bytes:
-    data = (head + ",".join(items) + tail).encode()
-    return data + _NUL if trailing_nul else data
 
 
 def encode_heartbeat(

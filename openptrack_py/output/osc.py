@@ -17,12 +17,12 @@ OSC floats are 32-bit: 1.7 arrives as 1.70000005.
 
 from __future__ import annotations
 
-import math
 import socket
 
 from openptrack_py.config import OscSinkConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages.track import TrackBatch
+from openptrack_py.output.opt_json import sec_nsec
 from openptrack_py.output.sinks import _Resolver
 
 try:
@@ -42,8 +42,7 @@ def _message(address: str, args: list[tuple[object, str]]) -> object:
 def build_bundle(frame: TrackBatch, seq: int, prefix: str = "/opt") -> bytes:
     """The OSC bundle of one frame, as a datagram."""
     bundle = OscBundleBuilder(IMMEDIATELY)
-    sec = math.floor(frame.stamp)
-    nsec = min(round((frame.stamp - sec) * 1e9), 999_999_999)
+    sec, nsec = sec_nsec(frame.stamp)
     bundle.add_content(
         _message(
             f"{prefix}/frame",

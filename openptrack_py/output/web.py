@@ -124,7 +124,7 @@ class WebServer:
         self.cfg = cfg
         self.counters = counters
         self._scene = orjson.dumps(scene_message)
-        self._clients: dict[ServerConnection, asyncio.Queue[bytes]] = {}
+        self._clients: dict[ServerConnection, asyncio.Queue[str]] = {}
         self._closing: set[asyncio.Task[None]] = set()
         self._files = {f"/{n}": _static(n) for n in ("index.html", "view.js")}
         self._files["/"] = self._files["/index.html"]
@@ -164,7 +164,7 @@ class WebServer:
         return response
 
     async def _client(self, ws: ServerConnection) -> None:
-        queue: asyncio.Queue[bytes] = asyncio.Queue(self.cfg.max_queue)
+        queue: asyncio.Queue[str] = asyncio.Queue(self.cfg.max_queue)
         self._clients[ws] = queue
         self.counters.inc("web.clients")
         closed = asyncio.ensure_future(ws.wait_closed())  # notice a client that left
@@ -176,7 +176,7 @@ class WebServer:
                 if not getter.done():
                     getter.cancel()
                     break
-                await ws.send(getter.result().decode())
+                await ws.send(getter.result())
         except ConnectionClosed:
             pass
         finally:
@@ -184,6 +184,7 @@ class WebServer:
             self._clients.pop(ws, None)
 
     def _broadcast(self, message: bytes) -> None:
+        text = message.decode()  # once for every client: sent as a text frame
         for ws, queue in list(self._clients.items()):
             if queue.full():
                 self._clients.pop(ws, None)
@@ -192,7 +193,7 @@ class WebServer:
                 self._closing.add(task)  # keep a reference until it is done
                 task.add_done_callback(self._closing.discard)
                 continue
-            queue.put_nowait(message)
+            queue.put_nowait(text)
 
     async def _main(self) -> None:
         try:
