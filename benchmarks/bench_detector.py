@@ -68,15 +68,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import numpy as np
 
 from benchmarks.common import emit, per_call_us
-from openptrack_py.config import DetectorConfig, HogConfig, SensorConfig
+from openptrack_py.config import DetectorConfig, HogConfig
 from openptrack_py.detection.frame import Frame
 from openptrack_py.detection.hog import HogVerifier, equalised_ir, luminance
 from openptrack_py.detection.pipeline import STAGES, PeopleDetector
 from openptrack_py.errors import ConfigError
+from openptrack_py.eval.detector import scenario_for_sensor_type
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.sim.render import DepthRenderer
-from openptrack_py.sim.scenarios import Scenario, build_scenario
-from openptrack_py.sim.world import Snapshot, World
+from openptrack_py.sim.scenarios import Scenario
+from openptrack_py.sim.simulator import scenario_world
+from openptrack_py.sim.world import Snapshot
 
 SEED = 0
 FRAMES = 60
@@ -91,19 +93,12 @@ CLASSROOM_CHILDREN = 18
 
 def scenario(name: str, sensor_type: str, **options: int) -> Scenario:
     """``name`` with its own sensor layout, every sensor turned into ``sensor_type``."""
-    base = build_scenario(name, seed=SEED, duration_s=None, **options)
-    sensors = [
-        SensorConfig(id=s.id, type=sensor_type, pose=s.pose)  # type: ignore[arg-type]
-        for s in base.sensors
-    ]
-    return build_scenario(name, seed=SEED, duration_s=None, sensors=sensors, **options)
+    return scenario_for_sensor_type(name, SEED, sensor_type, None, **options)
 
 
 def snapshots(sc: Scenario, frames: int) -> list[Snapshot]:
     """World states at ``frames`` instants ``SPACING_S`` apart."""
-    world_seq, _ = np.random.SeedSequence(SEED).spawn(2)
-    rng = np.random.default_rng(world_seq)
-    world = World(sc.room, sc.make_director(rng), rng)
+    world = scenario_world(sc)
     return [world.state_at((k + 1) * SPACING_S) for k in range(frames)]
 
 

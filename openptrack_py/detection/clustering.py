@@ -29,8 +29,6 @@ class Blobs:
         Blob index per input point, -1 for points in no blob.
     head_xy : ndarray
         ``(k, 2)`` mean floor position of each blob's head points.
-    centroid_xy : ndarray
-        ``(k, 2)`` mean floor position of each blob's points.
     top : ndarray
         Highest point of each blob above the floor.
     points : ndarray
@@ -41,7 +39,6 @@ class Blobs:
 
     labels: np.ndarray
     head_xy: np.ndarray
-    centroid_xy: np.ndarray
     top: np.ndarray
     points: np.ndarray
     width: np.ndarray
@@ -58,7 +55,6 @@ class Blobs:
         return Blobs(
             labels=renumber[self.labels],  # -1 maps to the last entry, -1
             head_xy=self.head_xy[keep],
-            centroid_xy=self.centroid_xy[keep],
             top=self.top[keep],
             points=self.points[keep],
             width=self.width[keep],
@@ -69,7 +65,7 @@ class Blobs:
 
 def _empty(n: int) -> Blobs:
     z = np.zeros(0)
-    return Blobs(np.full(n, -1, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 2)), z, z, z, z, z)
+    return Blobs(np.full(n, -1, dtype=np.int64), np.zeros((0, 2)), z, z, z, z, z)
 
 
 def _fill_holes(top: np.ndarray) -> np.ndarray:
@@ -118,10 +114,11 @@ class HeadClusterer:
     CAP_DEPTH_M = 0.06
     """Depth of the cap below a peak that must stay as small as a head."""
     CAP_REACH_M = 0.3
+    """Farthest a head's cap may reach from its peak."""
     LEVEL_CELLS_FACTOR = 3.0
     """Cells at a peak's level within twice the cap reach, in head crowns (0.12 m radius)."""
-    """Farthest a head's cap may reach from its peak."""
     PROMINENCE_M = 0.15
+    """Between two people's heads the height map dips at least this much."""
     ABOVE_HEAD_M = 0.05
     """Cells higher than their nearest head by more than this are not that person's."""
     SHOULDER_REACH_M = 0.36
@@ -130,7 +127,6 @@ class HeadClusterer:
     """Dip enough between peaks farther apart than :attr:`SHOULDER_REACH_M`."""
     GAP_CELLS = 2
     """Longest run of empty cells between two peaks that is not itself a gap between people."""
-    """Between two people's heads the height map dips at least this much."""
 
     CUT_MARGIN_M = 0.08
     """A blob whose top is this close to the top of the band was cut by it."""
@@ -208,7 +204,7 @@ class HeadClusterer:
         # Greedy head selection within each component, tallest first.
         order = np.lexsort((-height, comp))
         pi, pj, comp, height = pi[order], pj[order], comp[order], height[order]
-        heads: list[tuple[int, float, float]] = []  # (component, i, j)
+        heads: list[tuple[int, int, int]] = []  # (component, i, j)
         # single-cell holes of sparse far returns are not dips
         filled = _fill_holes(top)
         min_d2 = (self.heads_minimum_distance_m / cell) ** 2
@@ -353,7 +349,6 @@ class HeadClusterer:
         return Blobs(
             labels=labels,
             head_xy=np.column_stack([hx, hy])[keep],
-            centroid_xy=np.column_stack([mx, my])[keep],
             top=top[keep],
             points=count[keep],
             width=width[keep],

@@ -16,14 +16,6 @@ import numpy as np
 
 from openptrack_py.errors import ConfigError
 
-# (width, height, horizontal fov, vertical fov) of each sensor type's depth image.
-_SENSOR_IMAGES: dict[str, tuple[int, int, float, float]] = {
-    "kinect1": (320, 240, 57.0, 43.0),
-    "kinect2": (512, 424, 70.6, 60.0),
-    "realsense": (640, 480, 87.0, 58.0),
-    "sr4500": (176, 144, 69.0, 55.0),
-}
-
 
 @dataclass(frozen=True, slots=True)
 class Intrinsics:
@@ -65,19 +57,23 @@ class Intrinsics:
     def for_sensor(cls, sensor_type: str) -> Intrinsics:
         """Nominal intrinsics of a sensor type: kinect1, kinect2, realsense or sr4500.
 
+        Image size and fields of view are those of
+        :data:`openptrack_py.sim.sensors.SENSOR_TYPES`.
+
         Raises
         ------
         ConfigError
             For an unknown type.
         """
-        if sensor_type not in _SENSOR_IMAGES:
+        # imported here: detection alone does not load the simulator
+        from openptrack_py.sim.sensors import SENSOR_TYPES
+
+        if sensor_type not in SENSOR_TYPES:
             raise ConfigError(
-                f"sensor type: unknown {sensor_type!r} (allowed: {', '.join(_SENSOR_IMAGES)})"
+                f"sensor type: unknown {sensor_type!r} (allowed: {', '.join(SENSOR_TYPES)})"
             )
-        width, height, hfov, vfov = _SENSOR_IMAGES[sensor_type]
-        fx = (width / 2) / math.tan(math.radians(hfov) / 2)
-        fy = (height / 2) / math.tan(math.radians(vfov) / 2)
-        return cls(width, height, fx, fy, (width - 1) / 2, (height - 1) / 2)
+        kind = SENSOR_TYPES[sensor_type]
+        return cls(kind.width, kind.height, *kind.intrinsics)
 
     @classmethod
     def from_matrix(cls, k: np.ndarray, width: int, height: int) -> Intrinsics:

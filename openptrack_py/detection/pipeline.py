@@ -26,6 +26,7 @@ mixed with ``hog.weight``; blobs with a margin below ``hog.min_margin`` are drop
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -48,6 +49,9 @@ STAGES = ("cloud", "ground", "band", "background", "downsample", "cluster", "des
 _TOF_TYPES = ("kinect2", "sr4500")
 RANGE_CUT_M = 0.2
 """Blobs with points this close to ``max_distance_m`` are cut by the depth limit: dropped."""
+
+# Corners of a blob's standing box: x sign, y sign, and whether at the blob's top.
+_BOX_CORNERS = [(sx, sy, top) for sx in (-1, 1) for sy in (-1, 1) for top in (False, True)]
 
 
 @dataclass(frozen=True, slots=True)
@@ -233,10 +237,7 @@ class PeopleDetector:
             colours = None if frame.point_colors is None else np.asarray(frame.point_colors)[ok]
             return pts[ok], None, colours
         assert frame.intrinsics is not None
-        if self.sensor_type is None and self.config.sampling_factor is None:
-            step = 1 if frame.intrinsics.width <= 320 else 2  # low resolution: every pixel
-        else:
-            step = self.config.sampling_for(self.sensor_type)
+        step = self.config.sampling_for(self.sensor_type, frame.intrinsics.width)
         if self._rays is None or self._rays.key != (frame.intrinsics, step):
             self._rays = _Rays(frame.intrinsics, step)
         rays = self._rays
@@ -274,9 +275,9 @@ class PeopleDetector:
             low, high = cfg.band
             h = plane.height(pts)
             band = (h >= low) & (h <= high)
-            floor_from_camera = plane.ground_from_camera().astype(np.float32)
+            floor_from_camera = plane.ground_from_camera()
             sel = np.flatnonzero(band)
-            floor_pts = apply(floor_from_camera, pts[sel]).astype(np.float32)
+            floor_pts = apply(floor_from_camera.astype(np.float32), pts[sel]).astype(np.float32)
         if self.background is not None:
             with stage("background"):
                 if self.background.learning:
@@ -304,7 +305,7 @@ class PeopleDetector:
         if len(blobs) == 0:
             return DetectionResult((), self.frame_id, plane, timings, "empty")
         with stage("describe"):
-            people = self._describe(frame, plane, blobs, sel, pixels, colours)
+            people = self._describe(frame, floor_from_camera, blobs, sel, pixels, colours)
         hog_mode = "off"
         if self._hog is not None:
             with stage("hog"):
@@ -328,8 +329,8 @@ class PeopleDetector:
     def _describe(
         self,
         frame: Frame,
-        plane: GroundPlane,
-        blobs,
+        floor_from_camera: np.ndarray,
+        blobs: Blobs,
         sel: np.ndarray,
         pixels: np.ndarray | None,
         colours: np.ndarray | None,
@@ -341,7 +342,7 @@ class PeopleDetector:
         reach = np.linalg.norm(xy, axis=1, keepdims=True)
         xy += cfg.surface_offset_m * xy / np.maximum(reach, 1e-6)
         floor = np.column_stack([xy, blobs.top / 2])
-        camera_from_floor = invert(plane.ground_from_camera())
+        camera_from_floor = invert(floor_from_camera)
         optical = apply(camera_from_floor, floor)
         world = (
             apply(self.world_from_camera, optical) if self.world_from_camera is not None else floor
@@ -373,30 +374,25 @@ class PeopleDetector:
         frame: Frame,
         camera_from_floor: np.ndarray,
         xy: np.ndarray,
-        blobs,
+        blobs: Blobs,
     ) -> list[tuple[int, int, int, int]]:
         """Image boxes of standing boxes from the floor to each blob's top."""
         k = frame.intrinsics
         if k is None:
             return [(0, 0, 0, 0)] * len(xy)
-        half = np.maximum(blobs.length, 0.3)[:, None] / 2
-        out = []
-        for i in range(len(xy)):
-            corners = np.array(
-                [
-                    (xy[i, 0] + sx * half[i, 0], xy[i, 1] + sy * half[i, 0], z)
-                    for sx in (-1, 1)
-                    for sy in (-1, 1)
-                    for z in (0.0, float(blobs.top[i]))
-                ]
-            )
-            cam = apply(camera_from_floor, corners)
-            z = np.maximum(cam[:, 2], 1e-3)
-            u = np.clip(k.fx * cam[:, 0] / z + k.cx, 0, k.width - 1)
-            v = np.clip(k.fy * cam[:, 1] / z + k.cy, 0, k.height - 1)
-            u0, v0 = int(u.min()), int(v.min())
-            out.append((u0, v0, int(u.max()) - u0, int(v.max()) - v0))
-        return out
+        half = np.maximum(blobs.length, 0.3) / 2
+        corners = np.empty((len(xy), 8, 3))
+        for c, (sx, sy, top) in enumerate(_BOX_CORNERS):
+            corners[:, c, 0] = xy[:, 0] + sx * half
+            corners[:, c, 1] = xy[:, 1] + sy * half
+            corners[:, c, 2] = blobs.top if top else 0.0
+        cam = apply(camera_from_floor, corners)
+        z = np.maximum(cam[..., 2], 1e-3)
+        u = np.clip(k.fx * cam[..., 0] / z + k.cx, 0, k.width - 1)
+        v = np.clip(k.fy * cam[..., 1] / z + k.cy, 0, k.height - 1)
+        u0, v0 = u.min(axis=1).astype(int), v.min(axis=1).astype(int)
+        u1, v1 = u.max(axis=1).astype(int), v.max(axis=1).astype(int)
+        return [tuple(box) for box in np.column_stack([u0, v0, u1 - u0, v1 - v0]).tolist()]
 
     def _hog_check(
         self, frame: Frame, people: list[PersonDetection]
@@ -419,15 +415,11 @@ class PeopleDetector:
         margins = self._hog.score(gray, [p.bbox for p in people])  # type: ignore[union-attr]
         hog_conf = margin_to_confidence(margins)
         w = hog_cfg.weight
-        kept = []
-        for p, m, c in zip(people, margins, hog_conf, strict=True):
-            if m < hog_cfg.min_margin:
-                continue
-            kept.append(
-                PersonDetection(
-                    p.position, p.sensor_position, p.height,
-                    float((1 - w) * p.confidence + w * c), p.distance, p.bbox, p.appearance,
-                    p.points, float(m),
-                )
-            )  # fmt: skip
+        kept = [
+            dataclasses.replace(
+                p, confidence=float((1 - w) * p.confidence + w * c), hog_margin=float(m)
+            )
+            for p, m, c in zip(people, margins, hog_conf, strict=True)
+            if m >= hog_cfg.min_margin
+        ]
         return kept, mode

@@ -672,9 +672,19 @@ def _organised_frame(
 # ------------------------------------------------------------------- RealSense, Azure
 
 
+def _o3d_array(image: Any) -> np.ndarray:
+    """The pixels of an open3d image (legacy or tensor API)."""
+    return np.asarray(image.as_tensor().numpy() if hasattr(image, "as_tensor") else image)
+
+
+def _o3d_depth_scale(meta: Any) -> float:
+    """Depth units per metre of an open3d RealSense metadata (millimetres if unset)."""
+    return float(meta.depth_scale) if meta.depth_scale > 0 else DEFAULT_DEPTH_SCALE
+
+
 def _rgb_from_o3d(image: Any, color_format: str = "") -> np.ndarray | None:
     """uint8 RGB from an open3d colour image (either API); ``None`` if empty."""
-    array = np.asarray(image.as_tensor().numpy() if hasattr(image, "as_tensor") else image)
+    array = _o3d_array(image)
     if array.size == 0:
         return None
     if array.ndim == 2:
@@ -686,7 +696,7 @@ def _rgb_from_o3d(image: Any, color_format: str = "") -> np.ndarray | None:
 
 
 def _depth_from_o3d(image: Any) -> np.ndarray | None:
-    array = np.asarray(image.as_tensor().numpy() if hasattr(image, "as_tensor") else image)
+    array = _o3d_array(image)
     if array.ndim == 3 and array.shape[2] == 1:
         array = array[:, :, 0]
     return None if array.size == 0 else array
@@ -736,7 +746,7 @@ class RealSenseBagSource(_SourceBase):
             raise SourceError(
                 f"{self.name}: invalid intrinsics in the recording ({exc})"
             ) from None
-        self.depth_scale = float(meta.depth_scale) if meta.depth_scale > 0 else 1000.0
+        self.depth_scale = _o3d_depth_scale(meta)
         self.fps = float(meta.fps)
         self._color_format = str(meta.color_format)
         self._open = True
@@ -857,7 +867,7 @@ class RealSenseSource(_LiveSource):
             raise SourceError(f"{self.name}: cannot start the camera (connected: {connected})")
         meta = self._sensor.get_metadata()
         self.intrinsics = _intrinsics_from_o3d(meta.intrinsics, meta.width, meta.height)
-        self.depth_scale = float(meta.depth_scale) if meta.depth_scale > 0 else 1000.0
+        self.depth_scale = _o3d_depth_scale(meta)
         self._color_format = str(meta.color_format)
         self._open = True
 
@@ -1164,8 +1174,7 @@ def record_folder(
                     if intrinsics is None:
                         raise SourceError(f"record {out}: frame {frame.seq} has no intrinsics")
                 if count == 0:
-                    meta = {**intrinsics.to_dict(), "depth_scale": DEFAULT_DEPTH_SCALE}
-                    (out / "intrinsics.json").write_text(json.dumps(meta, indent=1) + "\n")
+                    _write_intrinsics(out, intrinsics)
                 origin = f"record {out}: frame {frame.seq}"
                 _check_size(frame.depth, intrinsics, origin)
                 name = f"{count:06d}.png"
@@ -1192,9 +1201,14 @@ def record_folder(
             _remove_contents(out, remove_folder=created)
         raise
     if count == 0 and intrinsics is not None:
-        meta = {**intrinsics.to_dict(), "depth_scale": DEFAULT_DEPTH_SCALE}
-        (out / "intrinsics.json").write_text(json.dumps(meta, indent=1) + "\n")
+        _write_intrinsics(out, intrinsics)
     return count
+
+
+def _write_intrinsics(folder: Path, intrinsics: Intrinsics) -> None:
+    """``intrinsics.json`` of a recording: the intrinsics and our ``depth_scale``."""
+    meta = {**intrinsics.to_dict(), "depth_scale": DEFAULT_DEPTH_SCALE}
+    (folder / "intrinsics.json").write_text(json.dumps(meta, indent=1) + "\n")
 
 
 def _remove_contents(folder: Path, *, remove_folder: bool) -> None:

@@ -17,7 +17,7 @@ people who should be found; the position error is the floor distance of true pos
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -25,10 +25,10 @@ from scipy.optimize import linear_sum_assignment
 from openptrack_py.config import DetectorConfig, SensorConfig
 from openptrack_py.detection.pipeline import RANGE_CUT_M, PeopleDetector
 from openptrack_py.geometry import apply, world_from_optical
-from openptrack_py.sim.depth_source import scenario_world
 from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.scenarios import Scenario, build_scenario
 from openptrack_py.sim.sensors import SENSOR_TYPES
+from openptrack_py.sim.simulator import scenario_world
 
 
 @dataclass
@@ -54,12 +54,8 @@ class DetectorScore:
     tp: int = 0
     fp: int = 0
     fn: int = 0
-    errors: list[float] | None = None
-    detect_s: list[float] | None = None
-
-    def __post_init__(self) -> None:
-        self.errors = [] if self.errors is None else self.errors
-        self.detect_s = [] if self.detect_s is None else self.detect_s
+    errors: list[float] = field(default_factory=list)
+    detect_s: list[float] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, float | int]:
         """Summary figures: recall, precision, mean and p95 error, rates."""
@@ -100,7 +96,7 @@ def match_frame(
             matched_det[r] = matched_gt[c] = True
             if should_find[c]:
                 score.tp += 1
-                score.errors.append(float(dist[r, c]))  # type: ignore[union-attr]
+                score.errors.append(float(dist[r, c]))
     score.fp += int((~matched_det).sum())
     score.fn += int((should_find & ~matched_gt).sum())
     score.expected += int(should_find.sum())
@@ -117,15 +113,18 @@ def detector_config_for(scenario: str) -> DetectorConfig:
 
 
 def scenario_for_sensor_type(
-    name: str, seed: int, sensor_type: str, duration_s: float | None
+    name: str, seed: int, sensor_type: str, duration_s: float | None, **options: int
 ) -> Scenario:
-    """A scenario with its own sensor placement, every sensor turned into ``sensor_type``."""
-    base = build_scenario(name, seed=seed, duration_s=duration_s)
+    """A scenario with its own sensor placement, every sensor turned into ``sensor_type``.
+
+    ``options`` are the scenario's own (e.g. ``children``), as for :func:`build_scenario`.
+    """
+    base = build_scenario(name, seed=seed, duration_s=duration_s, **options)
     sensors = [
         SensorConfig(id=s.id, type=sensor_type, pose=s.pose)  # type: ignore[arg-type]
         for s in base.sensors
     ]
-    return build_scenario(name, seed=seed, duration_s=duration_s, sensors=sensors)
+    return build_scenario(name, seed=seed, duration_s=duration_s, sensors=sensors, **options)
 
 
 def evaluate_detector(
@@ -203,7 +202,7 @@ def evaluate_detector(
             det_xy = np.array([d.position[:2] for d in result.detections]).reshape(-1, 2)
             for target in (score, total):
                 match_frame(det_xy, snap.pos, should, match_radius_m, target)
-                target.detect_s.append(elapsed)  # type: ignore[union-attr]
+                target.detect_s.append(elapsed)
     out: dict[str, object] = {
         "scenario": scenario,
         "seed": seed,

@@ -22,14 +22,8 @@ from openptrack_py.geometry import world_from_optical
 from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.scenarios import Scenario
 from openptrack_py.sim.sensors import Observation, SensorModel, SensorSpec
-from openptrack_py.sim.world import Room, Snapshot, World
-
-
-def scenario_world(scenario: Scenario) -> World:
-    """The scenario's world, seeded as :class:`~openptrack_py.sim.simulator.Simulator` seeds it."""
-    world_seq, _ = np.random.SeedSequence(scenario.seed).spawn(2)
-    rng = np.random.default_rng(world_seq)
-    return World(scenario.room, scenario.make_director(rng), rng)
+from openptrack_py.sim.simulator import scenario_world
+from openptrack_py.sim.world import Room, Snapshot
 
 
 class SimDepthSource:
@@ -89,7 +83,6 @@ class SimDepthSource:
             self.spec, scenario.room, np.random.default_rng([scenario.seed, 41, index])
         )
         self.intrinsics: Intrinsics | None = self.renderer.intrinsics
-        self.skipped = 0
         self._stop = threading.Event()
 
     def frames(self) -> Iterator[Frame]:
@@ -111,7 +104,6 @@ class SimDepthSource:
                 else:
                     late = int(-wait * self.speed * self.rate_hz)
                     if late > 0:  # frames whose time has passed are never captured
-                        self.skipped += late
                         k += late
                         continue
             snap = world.state_at(t)

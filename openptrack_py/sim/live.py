@@ -70,6 +70,7 @@ class LivePlayer:
         self.node = node
         self.speed = speed
         self.ground_truth_rate_hz = ground_truth_rate_hz
+        self.publish_detections = publish_detections
         self.start_time = start_time
         keys = node.keys
         self._detections = (
@@ -96,7 +97,7 @@ class LivePlayer:
                 }
             },
         )
-        for event in sim.events():
+        for event in sim.events(sensor_frames=self.publish_detections):
             due = start + (event.time - start) / self.speed
             delay = due - time.time()
             if delay > 0:
@@ -107,8 +108,6 @@ class LivePlayer:
             if not self.node.running:
                 break
             if isinstance(event, SensorFrame):
-                if not self._detections:
-                    continue
                 self._detections[event.batch.sensor_id].put(encode_detection_batch(event.batch))
                 counters.inc("detections", len(event.batch.detections))
             else:

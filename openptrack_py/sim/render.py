@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from openptrack_py.detection.frame import Frame, Intrinsics
-from openptrack_py.geometry import invert, world_from_optical
+from openptrack_py.geometry import apply, invert, world_from_optical
 from openptrack_py.sim.sensors import SensorSpec
 from openptrack_py.sim.world import Room, Snapshot
 
@@ -211,7 +211,7 @@ class DepthRenderer:
         walls = np.array(_hsv_to_rgb(np.array(40.0), 0.12, 0.85))
         floor_rgb = np.array(_hsv_to_rgb(np.array(30.0), 0.25, 0.55))
         wood = np.array(_hsv_to_rgb(np.array(28.0), 0.5, 0.6))
-        # (axis, coordinate, outward normal sign, colour, ir albedo, extent check)
+        # (axis, coordinate, outward normal sign, colour, ir albedo)
         planes = [
             (2, 0.0, 1.0, floor_rgb, _IR_ALBEDO["floor"]),
             (2, WALL_HEIGHT_M, -1.0, walls * 0.95, _IR_ALBEDO["wall"]),
@@ -330,7 +330,7 @@ class DepthRenderer:
         """Pixel box ``(u0, u1, v0, v1)`` covering an ellipsoid; None when out of view."""
         k = self.intrinsics
         corners = centre + (_CORNER_SIGNS * radii) @ axes.T
-        cam = corners @ self.camera_from_world[:3, :3].T + self.camera_from_world[:3, 3]
+        cam = apply(self.camera_from_world, corners)
         z = cam[:, 2]
         if z.max() <= 0.05:
             return None
@@ -436,16 +436,15 @@ class DepthRenderer:
             normal = (oc + tt[:, None] * dl[front]) @ to_unit.T
             normal /= np.linalg.norm(normal, axis=1, keepdims=True)
             ray = rays[front]
-            cos = np.abs(np.sum(normal * ray, axis=1)) / np.linalg.norm(ray, axis=1)
+            ray_len = np.linalg.norm(ray, axis=1)
+            cos = np.abs(np.sum(normal * ray, axis=1)) / ray_len
             kind = _PART_KIND[p]
             albedo = np.broadcast_to(colours[kind], (len(tt), 3)).copy()
             if kind == _SKIN:
                 albedo[normal[:, 2] > 0.35] = _HAIR
-            shade = 0.45 + 0.55 * np.clip(normal @ _LIGHT, 0.0, 1.0)
-            rgb[v0:v1, u0:u1][front] = np.clip(albedo * shade[:, None] * 255.0 + 0.5, 0, 255)
+            rgb[v0:v1, u0:u1][front] = np.clip(self._shade(albedo, normal) * 255.0 + 0.5, 0, 255)
             ir_albedo = _IR_ALBEDO["skin" if kind == _SKIN else "cloth"]
-            rng_m = tt * np.linalg.norm(ray, axis=1)
-            ir[v0:v1, u0:u1][front] = _intensity(ir_albedo, cos, rng_m)
+            ir[v0:v1, u0:u1][front] = _intensity(ir_albedo, cos, tt * ray_len)
             if noise is not None:
                 grazing[v0:v1, u0:u1][front] = cos < noise.grazing_cos
         return int(person.sum()), head_pixels

@@ -70,6 +70,17 @@ Event = SensorFrame | TruthFrame
 _TRUTH = -1
 
 
+def scenario_world(scenario: Scenario, dt: float = 0.04) -> World:
+    """The scenario's world, seeded as :class:`Simulator` seeds it.
+
+    Every process that simulates part of a scenario builds its world with this, so they
+    all agree on where everybody is.
+    """
+    world_seq, _ = np.random.SeedSequence(scenario.seed).spawn(2)
+    rng = np.random.default_rng(world_seq)
+    return World(scenario.room, scenario.make_director(rng), rng, dt=dt)
+
+
 class Simulator:
     """Runs a :class:`~openptrack_py.sim.scenarios.Scenario`.
 
@@ -103,26 +114,23 @@ class Simulator:
         self.scenario = scenario
         self.start_time = start_time
         self.ground_truth_rate_hz = ground_truth_rate_hz
-        root = np.random.SeedSequence(scenario.seed)
-        world_seq, sensor_seq = root.spawn(2)
-        world_rng = np.random.default_rng(world_seq)
-        self.world = World(scenario.room, scenario.make_director(world_rng), world_rng, dt=dt)
-        self.models = [
-            SensorModel(spec, scenario.room, np.random.default_rng(seq))
-            for spec, seq in zip(
-                scenario.sensors, sensor_seq.spawn(len(scenario.sensors)), strict=True
-            )
-        ]
-        if sensor_model == "rgbd":
+        self.world = scenario_world(scenario, dt)
+        specs = scenario.sensors
+        if sensor_model == "detections":
+            _, sensor_seq = np.random.SeedSequence(scenario.seed).spawn(2)
+            self.models = [
+                SensorModel(spec, scenario.room, np.random.default_rng(seq))
+                for spec, seq in zip(specs, sensor_seq.spawn(len(specs)), strict=True)
+            ]
+        elif sensor_model == "rgbd":
             from openptrack_py.sim.depth_source import RenderedSensorModel
 
-            specs = scenario.sensors
             rngs = [np.random.default_rng([scenario.seed, 41, i]) for i in range(len(specs))]
             self.models = [
                 RenderedSensorModel(spec, scenario.room, rng, detector_config)
                 for spec, rng in zip(specs, rngs, strict=True)
             ]
-        elif sensor_model != "detections":
+        else:
             raise ConfigError(
                 f"sensor_model: unknown {sensor_model!r} (allowed: detections, rgbd)"
             )
@@ -160,12 +168,16 @@ class Simulator:
         )
         return GroundTruthFrame(stamp=self.start_time + snap.t, seq=seq, people=people)
 
-    def events(self) -> Iterator[Event]:
-        """Every event of the run, in non-decreasing ``time`` order."""
+    def events(self, *, sensor_frames: bool = True) -> Iterator[Event]:
+        """Every event of the run, in non-decreasing ``time`` order.
+
+        With ``sensor_frames`` off, only the ground truth: the sensors are not observed.
+        """
         end = self.scenario.duration_s
         captures: list[tuple[float, int, int]] = []  # (scenario time, source, frame index)
-        for i, model in enumerate(self.models):
-            heapq.heappush(captures, (model.spec.phase_s, i, 0))
+        if sensor_frames:
+            for i, model in enumerate(self.models):
+                heapq.heappush(captures, (model.spec.phase_s, i, 0))
         if self.ground_truth_rate_hz:
             heapq.heappush(captures, (0.0, _TRUTH, 0))
         pending: list[tuple[float, int, int, SensorFrame]] = []
