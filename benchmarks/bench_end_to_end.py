@@ -28,7 +28,7 @@ from pathlib import Path
 
 import yaml
 
-from benchmarks.common import emit, percentiles
+from benchmarks.common import emit, free_port, percentiles
 from openptrack_py.config import ZenohConfig
 from openptrack_py.messages import Detection, DetectionBatch, encode_detection_batch
 from openptrack_py.output.opt_json import parse_datagram
@@ -36,12 +36,6 @@ from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _start(net: Path, node: str, name: str | None = None) -> subprocess.Popen[bytes]:
@@ -56,7 +50,7 @@ def run(source: str, frames: int, rate_hz: float = 30.0) -> list[tuple[float, di
     udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     udp.bind(("127.0.0.1", 0))
     udp.settimeout(0.2)
-    hub = f"tcp/127.0.0.1:{_free_port()}"
+    hub = f"tcp/127.0.0.1:{free_port()}"
     net = {
         "site": "bench",
         "zenoh": {"hub": hub},

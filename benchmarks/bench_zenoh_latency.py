@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from benchmarks.bench_codec import batch
-from benchmarks.common import emit, percentiles
+from benchmarks.common import emit, free_port, percentiles
 from openptrack_py.config import ZenohConfig
 from openptrack_py.messages import encode_detection_batch
 from openptrack_py.transport import wait_for_subscribers
@@ -28,12 +28,6 @@ from openptrack_py.transport.zenoh_bus import ZenohBus
 KEY = "opt/bench/detections/k1"
 ROOT = Path(__file__).resolve().parent.parent
 _STAMP = struct.Struct("<Qi")  # monotonic ns of the put, sequence number
-
-
-def _free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def child(mode: str, target: str, count: int, rate_hz: float) -> int:
@@ -68,7 +62,7 @@ def _spawn(mode: str, target: str, count: int, rate_hz: float) -> subprocess.Pop
 
 
 def measure_zenoh(count: int, rate_hz: float) -> tuple[list[float], int]:
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     cfg = ZenohConfig(hub=None, listen=[endpoint], connect=[], multicast_scouting=False)
     latencies: list[float] = []
     done = threading.Event()

@@ -310,7 +310,6 @@ def _cmd_config(args: argparse.Namespace) -> int:
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    from openptrack_py.eval.runner import format_markdown, format_table
     from openptrack_py.eval.trackers import DEFAULT_TRACKER, TRACKERS, run_eval
 
     args.tracker = args.tracker or DEFAULT_TRACKER
@@ -342,14 +341,21 @@ def _cmd_eval(args: argparse.Namespace) -> int:
             rows.append({"tracker": args.tracker, **result.to_dict()})
     columns = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "fp", "fn"]
     columns += ["frames", "gt_objects", "realtime_factor"]
-    if args.format == "json":
-        payload = rows[0] if len(rows) == 1 else rows
-        print(json.dumps(payload, indent=None if len(rows) == 1 else 1))
-    elif args.format == "markdown":
+    _print_rows(rows, columns, args.format)
+    return 0
+
+
+def _print_rows(rows: list[dict], columns: list[str], fmt: str) -> None:
+    """Result rows as JSON (one object for one row), a Markdown table or a text table."""
+    from openptrack_py.eval.runner import format_markdown, format_table
+
+    if fmt == "json":
+        one = len(rows) == 1
+        print(json.dumps(rows[0] if one else rows, indent=None if one else 1))
+    elif fmt == "markdown":
         print(format_markdown(rows, columns))
     else:
         print(format_table(rows, columns))
-    return 0
 
 
 # --------------------------------------------------------------------- scenarios
@@ -442,6 +448,15 @@ def _sim_source_factory(spec: str) -> SimDepthSource:
     return SimDepthSource(scenario, sensor, start_time=DEFAULT_START_TIME, realtime=False)
 
 
+def _add_detector_options(p: argparse.ArgumentParser) -> None:
+    """The detector settings ``detect`` and ``eval-detector`` share (see _detector_config)."""
+    from openptrack_py.config import HEIGHT_PRESETS
+
+    p.add_argument("--preset", choices=tuple(HEIGHT_PRESETS), help="height band preset")
+    p.add_argument("--detector-config", type=Path, help="YAML file of detector settings")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+
+
 def _cmd_detect(args: argparse.Namespace) -> int:
     from openptrack_py.detection.pipeline import PeopleDetector
     from openptrack_py.detection.sources import open_source
@@ -521,7 +536,6 @@ def _cmd_detect(args: argparse.Namespace) -> int:
 
 def _cmd_eval_detector(args: argparse.Namespace) -> int:
     from openptrack_py.eval.detector import evaluate_detector
-    from openptrack_py.eval.runner import format_table
 
     try:
         needed = args.preset or args.overrides or args.detector_config
@@ -543,14 +557,9 @@ def _cmd_eval_detector(args: argparse.Namespace) -> int:
                     match_radius_m=args.match_radius,
                 )
             )
-    if args.format == "json":
-        print(
-            json.dumps(rows[0] if len(rows) == 1 else rows, indent=None if len(rows) == 1 else 1)
-        )
-    else:
-        columns = ["scenario", "sensor_type", "preset", "recall", "precision", "mean_error_m"]
-        columns += ["p95_error_m", "frames", "expected", "fp", "fn", "detector_ms_p50"]
-        print(format_table(rows, columns))
+    columns = ["scenario", "sensor_type", "preset", "recall", "precision", "mean_error_m"]
+    columns += ["p95_error_m", "frames", "expected", "fp", "fn", "detector_ms_p50"]
+    _print_rows(rows, columns, args.format)
     return 0
 
 
@@ -705,12 +714,10 @@ def build_parser() -> argparse.ArgumentParser:
         "sim:SCENARIO[:SENSOR] (rendered simulation).",
     )
     p.add_argument("input", help="cloud file, folder, .bag, device or sim:SCENARIO[:SENSOR]")
-    p.add_argument("--preset", choices=("adult", "child", "everyone"), help="height band preset")
+    _add_detector_options(p)
     p.add_argument("--ground", help="'auto' (estimate the floor) or a plane a,b,c,d")
     p.add_argument("--sensor-type", default=None, help="kinect1|kinect2|realsense|sr4500")
     p.add_argument("--frames", type=int, metavar="N", help="stop after N frames")
-    p.add_argument("--detector-config", type=Path, help="YAML file of detector settings")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument(
         "--pose-from-sim", action="store_true", help="sim inputs: report in the world frame"
     )
@@ -729,9 +736,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
     p.add_argument("--sample-rate", type=float, default=2.0, help="instants scored per second")
     p.add_argument("--match-radius", type=float, default=0.3, help="match distance, metres")
-    p.add_argument("--preset", choices=("adult", "child", "everyone"), help="height band preset")
-    p.add_argument("--detector-config", type=Path, help="YAML file of detector settings")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    _add_detector_options(p)
     p.add_argument("--format", choices=("json", "table"), default="table")
     p.set_defaults(func=_cmd_eval_detector)
     return parser

@@ -462,11 +462,17 @@ class DetectorConfig(StrictModel):
             return self.min_points
         return MIN_POINTS.get(sensor_type or "", 20)
 
-    def sampling_for(self, sensor_type: str | None) -> int:
-        """Pixel sampling step for a sensor type (``sampling_factor`` when set)."""
+    def sampling_for(self, sensor_type: str | None, width: int) -> int:
+        """Pixel sampling step for a sensor type and image width.
+
+        ``sampling_factor`` when set; else the type's default; for an unknown type,
+        every pixel of low-resolution images (320 wide or less) and every second one above.
+        """
         if self.sampling_factor is not None:
             return self.sampling_factor
-        return SAMPLING_FACTORS.get(sensor_type or "", 2)
+        if sensor_type in SAMPLING_FACTORS:
+            return SAMPLING_FACTORS[sensor_type]
+        return 1 if width <= 320 else 2
 
     @property
     def top_minimum(self) -> float:
