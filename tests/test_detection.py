@@ -178,6 +178,30 @@ def test_ground_tracker_uses_the_expected_tilt() -> None:
     assert plane is not None and plane.angle_to(_truth(TILTED)) < 1.0
 
 
+def test_ground_tracker_refines_unless_locked_and_calibration_overrules_a_wrong_estimate() -> None:
+    """Refinement follows a floor that drifts 2 cm (within the inlier band); a locked one stays."""
+    points, _, _ = _room_cloud(TILTED)
+    truth = _truth(TILTED)
+    lowered = points - 0.02 * np.asarray(truth.normal)  # the whole scene 2 cm further down
+    free = GroundTracker(GroundConfig(mode="auto"), rng=np.random.default_rng(0))
+    locked = GroundTracker(GroundConfig(mode="auto", lock=True), rng=np.random.default_rng(0))
+    first = free.update(points)
+    assert first == locked.update(points)
+    for _ in range(40):
+        refined = free.update(lowered)
+        kept = locked.update(lowered)
+    assert kept == first
+    assert refined.offset == pytest.approx(first.offset + 0.02, abs=0.003)
+    # "both" (seed 003 §5.1): a calibration far from the estimate is kept, a close one yields
+    far = GroundPlane(truth.normal, truth.offset + 0.2, "calibration")
+    both = GroundTracker(GroundConfig(mode="both"), far, rng=np.random.default_rng(0))
+    assert both.update(points) == far
+    near = GroundPlane(truth.normal, truth.offset + 0.05, "calibration")
+    both = GroundTracker(GroundConfig(mode="both"), near, rng=np.random.default_rng(0))
+    chosen = both.update(points)
+    assert chosen.source == "auto" and chosen.offset == pytest.approx(truth.offset, abs=0.02)
+
+
 def test_ground_tracker_without_pose_finds_a_steep_floor() -> None:
     steep = Pose(x=0.0, y=0.0, z=2.6, pitch_deg=50.0, roll_deg=15.0)
     points, _, _ = _room_cloud(steep)
