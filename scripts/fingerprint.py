@@ -56,10 +56,10 @@ class _Recording:
             self.steps += 1
         return results
 
-    def push(self, batch, arrival):  # noqa: D102
+    def push(self, batch, arrival):
         return self._take(self.pipeline.push(batch, arrival))
 
-    def poll(self, now):  # noqa: D102
+    def poll(self, now):
         return self._take(self.pipeline.poll(now))
 
 

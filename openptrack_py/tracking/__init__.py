@@ -1,25 +1,55 @@
-"""Tracking: constant-velocity UKF per person, chi-square gate, GNN, lifecycle, fusion."""
+"""Tracking: constant-velocity UKF per person, chi-square gate, GNN, track lifecycle.
+
+The tracker composes one object per role (:mod:`~openptrack_py.tracking.base`); the
+pipeline puts several sensors' batches in capture order before it
+(:mod:`~openptrack_py.tracking.ordering`) and late batches are replayed exactly
+(:mod:`~openptrack_py.tracking.replay`).
+"""
 
 from openptrack_py.tracking.association import GlobalNearestNeighbour
-from openptrack_py.tracking.fusion import ClockAligner, ReorderBuffer, TrackingPipeline
+from openptrack_py.tracking.base import (
+    Associator,
+    Deleter,
+    Gater,
+    IdentityModel,
+    Initiator,
+    MeasurementModel,
+    MotionModel,
+    Stateful,
+)
 from openptrack_py.tracking.gating import ChiSquareGater
+from openptrack_py.tracking.identity import NullIdentity
 from openptrack_py.tracking.lifecycle import ConfidenceInitiator, TimeDeleter
 from openptrack_py.tracking.measurement import PositionMeasurement, PositionVelocityMeasurement
 from openptrack_py.tracking.motion import ConstantVelocity
+from openptrack_py.tracking.ordering import ClockAligner, ReorderBuffer
+from openptrack_py.tracking.pipeline import TrackingPipeline
+from openptrack_py.tracking.state import DetectionArrays, TrackTable
 from openptrack_py.tracking.tracker import Tracker, build_tracker
 from openptrack_py.tracking.ukf import MerweSigmaPoints, UnscentedKalmanFilter
 
 __all__ = [
+    "Associator",
     "ChiSquareGater",
     "ClockAligner",
     "ConfidenceInitiator",
     "ConstantVelocity",
+    "Deleter",
+    "DetectionArrays",
+    "Gater",
     "GlobalNearestNeighbour",
+    "IdentityModel",
+    "Initiator",
+    "MeasurementModel",
     "MerweSigmaPoints",
+    "MotionModel",
+    "NullIdentity",
     "PositionMeasurement",
     "PositionVelocityMeasurement",
     "ReorderBuffer",
+    "Stateful",
     "TimeDeleter",
+    "TrackTable",
     "Tracker",
     "TrackingPipeline",
     "UnscentedKalmanFilter",

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from openptrack_py.tracking.state import DetectionArrays, TrackTable
+
 
 @dataclass(frozen=True)
 class ConfidenceInitiator:
@@ -29,14 +31,15 @@ class ConfidenceInitiator:
     detections_to_validate: int
 
     def initiate(
-        self, confidence: np.ndarray, assigned: np.ndarray, in_any_gate: np.ndarray
+        self, dets: DetectionArrays, assigned: np.ndarray, in_any_gate: np.ndarray
     ) -> np.ndarray:
         """Indices of the detections that start new tracks."""
-        return np.flatnonzero(~assigned & ~in_any_gate & (confidence >= self.min_confidence))
+        confident = dets.confidence >= self.min_confidence
+        return np.flatnonzero(~assigned & ~in_any_gate & confident)
 
-    def confirm(self, hits: np.ndarray, confirmed: np.ndarray) -> np.ndarray:
-        """Confirmation flags after this step."""
-        return confirmed | (hits >= self.detections_to_validate)
+    def confirm(self, table: TrackTable, t: float) -> np.ndarray:
+        """Confirmation flags after the step at ``t``."""
+        return table.confirmed | (table.hits >= self.detections_to_validate)
 
 
 @dataclass(frozen=True)
@@ -59,13 +62,12 @@ class TimeDeleter:
     sec_before_old: float
     tentative_timeout_s: float = float("inf")
 
-    def delete(
-        self, now: float, first_seen: np.ndarray, last_seen: np.ndarray, confirmed: np.ndarray
-    ) -> np.ndarray:
-        """Mask of tracks to delete at time ``now``."""
+    def delete(self, table: TrackTable, t: float) -> np.ndarray:
+        """Mask of tracks to delete at time ``t``."""
+        confirmed = table.confirmed
         fake = ~confirmed & (
-            (now - first_seen >= self.sec_before_fake)
-            | (now - last_seen >= self.tentative_timeout_s)
+            (t - table.first_seen >= self.sec_before_fake)
+            | (t - table.last_seen >= self.tentative_timeout_s)
         )
-        old = confirmed & (now - last_seen >= self.sec_before_old)
+        old = confirmed & (t - table.last_seen >= self.sec_before_old)
         return fake | old

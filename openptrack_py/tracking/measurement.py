@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from openptrack_py.tracking.state import DetectionArrays, TrackTable
+
 
 @dataclass(frozen=True)
 class PositionMeasurement:
@@ -37,6 +39,19 @@ class PositionMeasurement:
         """Noise covariances ``(M, 2, 2)`` of detections at ``distance (M,)`` metres."""
         sigma = self.sigma_m + self.sigma_per_m2 * np.asarray(distance, dtype=float) ** 2
         return (sigma**2)[:, None, None] * np.eye(2)
+
+    def position_noise(self, distance: np.ndarray) -> np.ndarray:
+        """Same as :meth:`noise`: the whole measurement is the position."""
+        return self.noise(distance)
+
+    def pair_measurements(
+        self, dets: DetectionArrays, table: TrackTable, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Every track sees each detection's position with the same noise."""
+        n = len(table)
+        z = np.broadcast_to(dets.xy, (n, *dets.xy.shape))
+        r = np.broadcast_to(self.noise(dets.distance), (n, len(dets), 2, 2))
+        return z, r
 
 
 @dataclass(frozen=True)
@@ -72,6 +87,27 @@ class PositionVelocityMeasurement:
         """Measurement of sigma points ``(N, k, 4) -> (N, k, 4)``."""
         return sigmas[..., 0:4]
 
+    def position_noise(self, distance: np.ndarray) -> np.ndarray:
+        """Noise of the position part alone."""
+        return self.position.noise(distance)
+
+    def pair_measurements(
+        self, dets: DetectionArrays, table: TrackTable, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Position plus the velocity from each track's remembered past to each detection."""
+        horizon = np.minimum(self.horizon_s, t - table.first_seen)
+        usable = horizon >= self.min_horizon_s
+        past = np.array(
+            [
+                _past_position(table, i, t - max(h, self.min_horizon_s))
+                for i, h in enumerate(horizon)
+            ]
+        ).reshape(-1, 2)
+        tau = np.maximum(horizon, self.min_horizon_s)
+        vel = (dets.xy[None, :, :] - past[:, None, :]) / tau[:, None, None]
+        z = np.concatenate([np.broadcast_to(dets.xy, vel.shape), vel], axis=2)
+        return z, self.noise(dets.distance, usable)
+
     def noise(self, distance: np.ndarray, usable: np.ndarray) -> np.ndarray:
         """Noise ``(N, M, 4, 4)`` for tracks with ``usable (N,)`` history."""
         pos = self.position.noise(distance)  # (M, 2, 2)
@@ -82,3 +118,14 @@ class PositionVelocityMeasurement:
         out[:, :, 2, 2] = var[:, None]
         out[:, :, 3, 3] = var[:, None]
         return out
+
+
+def _past_position(table: TrackTable, row: int, when: float) -> np.ndarray:
+    """Track ``row``'s position at ``when``, interpolated in its remembered history."""
+    times, xy = table.hist_t[row], table.hist_xy[row]
+    valid = times > -np.inf
+    if not valid.any():
+        return table.x[row, 0:2]
+    order = np.argsort(times[valid])
+    ts, ps = times[valid][order], xy[valid][order]
+    return np.array([np.interp(when, ts, ps[:, 0]), np.interp(when, ts, ps[:, 1])])

@@ -2,7 +2,7 @@
 
 :class:`TrackerService` is the body of the ``tracker`` node. It decodes every batch on
 ``opt/<site>/detections/*`` (malformed ones are counted and dropped by the node), runs
-the :class:`~openptrack_py.tracking.fusion.TrackingPipeline`, and publishes one
+the :class:`~openptrack_py.tracking.pipeline.TrackingPipeline`, and publishes one
 TrackBatch on ``opt/<site>/tracks`` after every step.
 
 Live reconfiguration: a :class:`~openptrack_py.messages.ConfigUpdate` put on
@@ -28,7 +28,8 @@ from openptrack_py.messages.codec import (
 from openptrack_py.messages.config_update import ConfigAck, ConfigUpdate
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.runtime.node import Inbox, Node, Received
-from openptrack_py.tracking.fusion import ClockAligner, TrackingPipeline
+from openptrack_py.tracking.ordering import ClockAligner
+from openptrack_py.tracking.pipeline import TrackingPipeline
 from openptrack_py.tracking.tracker import build_tracker
 
 FIXED_WHILE_RUNNING = frozenset({"host"})

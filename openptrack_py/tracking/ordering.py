@@ -1,8 +1,8 @@
-"""Multi-sensor fusion: clock alignment, capture-time ordering, late-batch policy.
+"""Putting several sensors' batches in capture order: clock alignment and a reorder window.
 
 Batches from several sensors reach the tracker in arrival order, which is not capture
-order (latencies differ and jitter). :class:`TrackingPipeline` puts them back in capture
-order before the tracker sees them:
+order (latencies differ and jitter), and each sensor stamps them with its own clock.
+Before the tracker sees them (:class:`~openptrack_py.tracking.pipeline.TrackingPipeline`):
 
 * :class:`ClockAligner` (``clock_correction: arrival``) estimates each sensor's
   ``arrival - stamp`` as its running minimum over the last minute (jitter only ever adds
@@ -14,7 +14,8 @@ order before the tracker sees them:
   delivered a frame that must be later than it (known from each sensor's frame
   period), or it has waited ``window_s``. In steady state this adds almost no delay.
 * A batch captured before one already applied is *late*; the tracker replays it from
-  its state before that capture, or drops it (``late_policy``), and it is counted.
+  its state before that capture (:mod:`openptrack_py.tracking.replay`), or drops it
+  (``late_policy``), and it is counted.
 """
 
 from __future__ import annotations
@@ -22,12 +23,9 @@ from __future__ import annotations
 import bisect
 import statistics
 from collections import deque
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
-from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import DetectionBatch
-from openptrack_py.messages.track import TrackBatch
-from openptrack_py.tracking.tracker import Tracker, build_tracker
 
 
 @dataclass
@@ -148,60 +146,3 @@ class ReorderBuffer:
         out = [item[3] for item in self._held]
         self._held.clear()
         return out
-
-
-class TrackingPipeline:
-    """Clock alignment, reordering and the tracker, for a node or an evaluation.
-
-    Parameters
-    ----------
-    tracker : Tracker
-        The tracker.
-    window_s : float
-        Reorder window.
-    clock_correction : {"arrival", "none"}
-        Whether to align sensor clocks.
-    """
-
-    def __init__(
-        self, tracker: Tracker, window_s: float = 0.05, clock_correction: str = "arrival"
-    ) -> None:
-        self.tracker = tracker
-        self.buffer = ReorderBuffer(window_s)
-        self.aligner = ClockAligner() if clock_correction == "arrival" else None
-
-    @classmethod
-    def from_config(cls, config: TrackerConfig) -> TrackingPipeline:
-        """The tracker of ``config`` behind its reorder window and clock correction."""
-        return cls(build_tracker(config), config.reorder_window_s, config.clock_correction)
-
-    @property
-    def late(self) -> int:
-        """Batches captured before one already applied (replayed or dropped)."""
-        counters = self.tracker.counters
-        return counters["late_applied"] + counters["late_dropped"]
-
-    def push(
-        self, batch: DetectionBatch, arrival: float
-    ) -> list[tuple[DetectionBatch, TrackBatch]]:
-        """Take a batch as it arrives; return ``(batch, tracks)`` for every step taken.
-
-        The returned batches carry the corrected stamps the tracker used.
-        """
-        if self.aligner is not None:
-            self.aligner.observe(batch.sensor_id, batch.stamp, arrival)
-            shift = self.aligner.correction(batch.sensor_id)
-            if shift:
-                batch = replace(batch, stamp=batch.stamp + shift)
-        return self._run(self.buffer.push(batch, arrival))
-
-    def poll(self, now: float) -> list[tuple[DetectionBatch, TrackBatch]]:
-        """Step with batches whose wait is over (call regularly when idle)."""
-        return self._run(self.buffer.release(now))
-
-    def flush(self) -> list[tuple[DetectionBatch, TrackBatch]]:
-        """Step with everything still held."""
-        return self._run(self.buffer.flush())
-
-    def _run(self, batches: list[DetectionBatch]) -> list[tuple[DetectionBatch, TrackBatch]]:
-        return [(batch, self.tracker.step(batch)) for batch in batches]

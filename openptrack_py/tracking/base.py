@@ -1,0 +1,153 @@
+"""The tracker's roles, one small interface each.
+
+:class:`~openptrack_py.tracking.tracker.Tracker` composes one object per role and
+depends only on these protocols, so a role can be swapped (a stub in a test, another
+gate, another identity model) without touching the tracker:
+
+=================  ===================================================  ==============
+role               verb                                                 default
+=================  ===================================================  ==============
+motion             ``fx`` / ``noise``: propagate a state over ``dt``     ConstantVelocity
+measurement        ``pair_measurements``: what a detection measures      PositionMeasurement
+gater              ``gate``: which track-detection pairs are admissible  ChiSquareGater
+associator         ``associate``: one-to-one pairs of least cost         GlobalNearestNeighbour
+initiator          ``initiate`` / ``confirm``: births and confirmation   ConfidenceInitiator
+deleter            ``delete``: which tracks end                          TimeDeleter
+identity           ``cost`` / ``observe`` / ``annotate``: who a track is NullIdentity
+=================  ===================================================  ==============
+
+Per-track state lives in one of two places, both restored by the tracker's late-batch
+replay (:mod:`openptrack_py.tracking.replay`): the columns of
+:class:`~openptrack_py.tracking.state.TrackTable`, or a role's own state exposed through
+:class:`Stateful` (``snapshot`` / ``restore``). A role that keeps state anywhere else
+would silently diverge on replay; ``tests/test_tracker_roles.py`` checks that a stateful
+role survives one.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from openptrack_py.messages.track import Track
+from openptrack_py.tracking.state import DetectionArrays, TrackTable
+
+
+class MotionModel(Protocol):
+    """How a track's state ``[x, y, vx, vy]`` evolves between two steps."""
+
+    def fx(self, sigmas: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        """Move sigma points ``(N, k, 4)`` forward by ``dt (N,)`` seconds."""
+
+    def noise(self, dt: np.ndarray) -> np.ndarray:
+        """Process noise ``(N, 4, 4)`` accumulated over steps ``dt (N,)``."""
+
+
+class MeasurementModel(Protocol):
+    """What a detection measures of a track's state, and how noisy that is."""
+
+    dim: int
+    """Measurement dimension (the gate's degrees of freedom)."""
+
+    def hx(self, sigmas: np.ndarray) -> np.ndarray:
+        """Predicted measurements ``(N, k, dim)`` of sigma points ``(N, k, 4)``."""
+
+    def pair_measurements(
+        self, dets: DetectionArrays, table: TrackTable, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Measurement ``(N, M, dim)`` and noise ``(N, M, dim, dim)`` of every pair.
+
+        A measurement may depend on the track (e.g. a velocity derived from its past),
+        hence one per pair.
+        """
+
+    def position_noise(self, distance: np.ndarray) -> np.ndarray:
+        """Floor-position noise ``(M, 2, 2)`` of detections at ``distance (M,)`` metres.
+
+        Sets a new track's initial position uncertainty.
+        """
+
+
+class Gater(Protocol):
+    """Admits track-detection pairs whose distance is plausible."""
+
+    dof: int
+    """Degrees of freedom the gate is built for (must equal the measurement's)."""
+
+    def gate(self, d2: np.ndarray) -> np.ndarray:
+        """Boolean mask of admissible pairs from squared Mahalanobis distances ``d2``."""
+
+
+class Associator(Protocol):
+    """Chooses one-to-one track-detection pairs."""
+
+    def associate(self, cost: np.ndarray, allowed: np.ndarray) -> list[tuple[int, int]]:
+        """Pairs ``(track_row, detection_column)`` among ``allowed`` ones."""
+
+
+class Initiator(Protocol):
+    """Decides which detections start tracks and when a track is confirmed."""
+
+    def initiate(
+        self, dets: DetectionArrays, assigned: np.ndarray, in_any_gate: np.ndarray
+    ) -> np.ndarray:
+        """Indices of the detections that start new (tentative) tracks."""
+
+    def confirm(self, table: TrackTable, t: float) -> np.ndarray:
+        """Confirmation flag of every track after the step at ``t``."""
+
+
+class Deleter(Protocol):
+    """Decides which tracks end."""
+
+    def delete(self, table: TrackTable, t: float) -> np.ndarray:
+        """Mask of the tracks to delete at time ``t``."""
+
+
+@runtime_checkable
+class Stateful(Protocol):
+    """A role that keeps state of its own (e.g. per-track appearance).
+
+    The tracker stores ``snapshot()`` with its own state before each step and hands it
+    back to ``restore`` when a late batch makes it replay from there. A snapshot must
+    not share mutable objects with the live state.
+    """
+
+    def snapshot(self) -> Any:
+        """An independent copy of the role's state."""
+
+    def restore(self, state: Any) -> None:
+        """Return to a state taken by :meth:`snapshot`."""
+
+
+class IdentityModel(Protocol):
+    """Who each track is: re-ranks candidates, keeps identities, names tracks.
+
+    The identity role can only *re-rank* pairs the gate admitted (its cost is added to
+    admissible pairs only); it never admits a pair the gate rejects.
+    """
+
+    def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
+        """Extra cost ``(N, M)`` of each pair, or ``None`` for no opinion."""
+
+    def observe(
+        self,
+        table: TrackTable,
+        rows: np.ndarray,
+        cols: np.ndarray,
+        dets: DetectionArrays,
+        t: float,
+    ) -> None:
+        """Tracks ``rows`` were updated with detections ``cols`` at time ``t``."""
+
+    def started(
+        self, table: TrackTable, rows: np.ndarray, dets: DetectionArrays, t: float
+    ) -> None:
+        """Tracks ``rows`` were just started from detections of ``dets``."""
+
+    def ended(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+        """Tracks ``rows`` are about to be deleted at time ``t``."""
+
+    def annotate(self, tracks: list[Track]) -> list[Track]:
+        """The output tracks with their ``stable_id`` / ``identity`` filled in."""

@@ -1,0 +1,43 @@
+"""The identity role's default: no identity model at all.
+
+With :class:`NullIdentity` the tracker associates on motion alone and publishes no
+``stable_id`` or name. Identity models (appearance, re-identification, a roster of
+named people) implement :class:`~openptrack_py.tracking.base.IdentityModel` in its place.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from openptrack_py.messages.track import Track
+from openptrack_py.tracking.state import DetectionArrays, TrackTable
+
+
+class NullIdentity:
+    """An identity role that has no opinion and keeps no state."""
+
+    def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
+        """No extra association cost."""
+        return None
+
+    def observe(
+        self,
+        table: TrackTable,
+        rows: np.ndarray,
+        cols: np.ndarray,
+        dets: DetectionArrays,
+        t: float,
+    ) -> None:
+        """Nothing to learn."""
+
+    def started(
+        self, table: TrackTable, rows: np.ndarray, dets: DetectionArrays, t: float
+    ) -> None:
+        """Nothing to set up."""
+
+    def ended(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+        """Nothing to forget."""
+
+    def annotate(self, tracks: list[Track]) -> list[Track]:
+        """The tracks unchanged."""
+        return tracks

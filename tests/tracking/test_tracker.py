@@ -1,0 +1,102 @@
+"""The tracker as a whole: role checks, and the gate widening while a person is unseen."""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from openptrack_py.config import TrackerConfig
+from openptrack_py.tracking import (
+    ChiSquareGater,
+    ConfidenceInitiator,
+    ConstantVelocity,
+    GlobalNearestNeighbour,
+    PositionMeasurement,
+    TimeDeleter,
+    Tracker,
+    build_tracker,
+)
+from tests.tracking.helpers import (
+    FRAME,
+    det,
+    feed_still,
+    make_batch,
+)
+
+
+def test_tracker_rejects_gate_of_wrong_dimension() -> None:
+    with pytest.raises(ValueError, match="dof"):
+        Tracker(
+            ConstantVelocity(0.5),
+            PositionMeasurement(0.08),
+            ChiSquareGater(0.95, 4),
+            GlobalNearestNeighbour(),
+            ConfidenceInitiator(0.5, 3),
+            TimeDeleter(2.4, 3.0),
+        )
+
+
+# --------------------------------------------- the gate widens while unseen
+
+
+def _admission_radius(tracker: Tracker) -> float:
+    """Largest distance (along +x from the prediction) at which track 0 takes a detection.
+
+    Probes copies of the tracker with a detection at the tracker's current time, so no
+    further prediction happens.
+    """
+    assert tracker.time is not None
+    centre = tracker.table.x[0, 0:2].copy()
+    track_id = int(tracker.table.ids[0])
+
+    def admitted(r: float) -> bool:
+        probe = copy.deepcopy(tracker)
+        hits = int(probe.table.hits[0])
+        probe.step(make_batch(tracker.time, [det(centre[0] + r, centre[1])], seq=999))
+        row = int(np.flatnonzero(probe.table.ids == track_id)[0])
+        return int(probe.table.hits[row]) > hits
+
+    lo, hi = 0.0, 30.0
+    assert admitted(lo)
+    assert not admitted(hi)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if admitted(mid) else (lo, mid)
+    return lo
+
+
+def test_gate_widens_with_time_unseen() -> None:
+    tracker = build_tracker(TrackerConfig())
+    last = feed_still(tracker, (3.0, 2.0), 6)
+    assert tracker.table.confirmed.tolist() == [True]
+    r_noise = PositionMeasurement(0.08, 0.002).noise(np.array([3.0]))[0]
+    fresh = copy.deepcopy(tracker)
+    fresh.step(make_batch(last + FRAME, seq=50))  # right after an update: one frame, no detection
+    unseen = [FRAME, 0.25, 0.5, 1.0, 1.5, 2.0, 2.5]
+    innovations, radii = [], []
+    for tau in unseen:
+        probe = copy.deepcopy(tracker)
+        probe.step(make_batch(last + tau, seq=60))
+        s = probe.table.cov[0, 0:2, 0:2] + r_noise
+        innovations.append(s)
+        radius = _admission_radius(probe)
+        radii.append(radius)
+        # the probed gate is exactly the chi-square gate on the predicted innovation
+        expected = math.sqrt(probe.gater.threshold / np.linalg.inv(s)[0, 0])
+        assert radius == pytest.approx(expected, rel=1e-6)
+    for a, b in itertools.pairwise(innovations):
+        assert (np.linalg.eigvalsh(b - a) > 0).all()  # strictly larger in every direction
+    assert all(b > a for a, b in itertools.pairwise(radii))
+    # a detection admitted after 1 s unseen is outside the gate right after an update
+    r_1s = radii[unseen.index(1.0)]
+    assert r_1s > 3 * radii[0]
+    started = fresh.counters["tracks_started"]
+    hits = int(fresh.table.hits[0])
+    centre = fresh.table.x[0, 0:2]
+    fresh.step(make_batch(fresh.time, [det(centre[0] + 0.9 * r_1s, centre[1])], seq=70))
+    assert int(fresh.table.hits[0]) == hits
+    assert fresh.counters["tracks_started"] == started + 1  # it starts a track of its own
