@@ -64,7 +64,7 @@ class HypothesisFeed(Protocol):
 
 
 class Pipeline(Protocol):
-    """Something that takes batches as they arrive and steps a tracker (see ``tracking.pipeline``)."""
+    """Takes batches as they arrive and steps a tracker (see ``tracking.pipeline``)."""
 
     def push(
         self, batch: DetectionBatch, arrival: float

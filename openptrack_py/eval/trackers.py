@@ -34,7 +34,7 @@ def load_tracker_config(path: Path | None = None, overrides: Sequence[str] = ())
 
 
 def tracking_feed(config: TrackerConfig) -> TrackerFeed:
-    """A feed running the tracker with this configuration behind its clock alignment and reorder window."""
+    """A feed running the tracker of ``config`` behind its clock alignment and reorder."""
     return TrackerFeed(TrackingPipeline.from_config(config))
 
 
