@@ -7,6 +7,7 @@ import json
 import shutil
 from collections.abc import Iterable
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -56,21 +57,7 @@ def record_folder(
     cv2 = _import_cv2(f"record {out}")
     if max_frames is not None and max_frames < 0:
         raise SourceError(f"record {out}: max_frames must be >= 0 (received {max_frames})")
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise SourceError(f"record {out}: exists and is not an empty folder; choose a new one")
-    created = not out.exists()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise SourceError(f"record {out}: cannot create the folder ({exc})") from None
-
-    def write(rel: str, image: np.ndarray) -> str:
-        target = out / rel
-        target.parent.mkdir(exist_ok=True)
-        if not cv2.imwrite(str(target), image):
-            raise SourceError(f"record {out}: cannot write {rel}")
-        return rel
-
+    created = _make_empty_folder(out)
     count = 0
     try:
         with (out / "frames.csv").open("w", newline="", encoding="utf-8") as fh:
@@ -91,23 +78,7 @@ def record_folder(
                         raise SourceError(f"record {out}: frame {frame.seq} has no intrinsics")
                 if count == 0:
                     _write_intrinsics(out, intrinsics)
-                origin = f"record {out}: frame {frame.seq}"
-                _check_size(frame.depth, intrinsics, origin)
-                name = f"{count:06d}.png"
-                depth_rel = write(f"depth/{name}", _depth_to_mm(frame.depth))
-                color_rel = intensity_rel = ""
-                if frame.color is not None:
-                    _check_size(frame.color, intrinsics, origin)
-                    bgr = cv2.cvtColor(
-                        np.ascontiguousarray(frame.color, np.uint8), cv2.COLOR_RGB2BGR
-                    )
-                    color_rel = write(f"color/{name}", bgr)
-                if frame.intensity is not None:
-                    _check_size(frame.intensity, intrinsics, origin)
-                    intensity_rel = write(f"intensity/{name}", _intensity_png(frame.intensity))
-                writer.writerow(
-                    [frame.seq, repr(float(frame.stamp)), depth_rel, color_rel, intensity_rel]
-                )
+                writer.writerow(_write_images(cv2, out, frame, intrinsics, f"{count:06d}.png"))
                 fh.flush()
                 count += 1
                 if max_frames is not None and count >= max_frames:
@@ -119,6 +90,45 @@ def record_folder(
     if count == 0 and intrinsics is not None:
         _write_intrinsics(out, intrinsics)
     return count
+
+
+def _make_empty_folder(out: Path) -> bool:
+    """Create the recording folder, or accept an empty one; whether it was created."""
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise SourceError(f"record {out}: exists and is not an empty folder; choose a new one")
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SourceError(f"record {out}: cannot create the folder ({exc})") from None
+    return created
+
+
+def _write_images(
+    cv2: ModuleType, out: Path, frame: Frame, intrinsics: Intrinsics, name: str
+) -> list[object]:
+    """Write a frame's images as ``name`` in their folders; its ``frames.csv`` row."""
+    origin = f"record {out}: frame {frame.seq}"
+    _check_size(frame.depth, intrinsics, origin)
+    depth_rel = _write_png(cv2, out, f"depth/{name}", _depth_to_mm(frame.depth))
+    color_rel = intensity_rel = ""
+    if frame.color is not None:
+        _check_size(frame.color, intrinsics, origin)
+        bgr = cv2.cvtColor(np.ascontiguousarray(frame.color, np.uint8), cv2.COLOR_RGB2BGR)
+        color_rel = _write_png(cv2, out, f"color/{name}", bgr)
+    if frame.intensity is not None:
+        _check_size(frame.intensity, intrinsics, origin)
+        intensity_rel = _write_png(cv2, out, f"intensity/{name}", _intensity_png(frame.intensity))
+    return [frame.seq, repr(float(frame.stamp)), depth_rel, color_rel, intensity_rel]
+
+
+def _write_png(cv2: ModuleType, out: Path, rel: str, image: np.ndarray) -> str:
+    """Write ``image`` to ``out / rel`` (creating its folder); ``rel``."""
+    target = out / rel
+    target.parent.mkdir(exist_ok=True)
+    if not cv2.imwrite(str(target), image):
+        raise SourceError(f"record {out}: cannot write {rel}")
+    return rel
 
 
 def _depth_to_mm(depth: np.ndarray) -> np.ndarray:
