@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from openptrack_py.errors import WireFormatError
 from openptrack_py.messages import Track, Visibility
 from openptrack_py.output.opt_json import (
-    encode_heartbeat,
+    encode_opt_heartbeat,
     encode_tracks,
     number,
     parse_datagram,
@@ -38,8 +38,8 @@ CASES = {
     "opt_v1_tracks": lambda: encode_tracks(TRACKS, seq=123, stamp=STAMP, fmt="opt-v1"),
     "opt_v2_tracks_no_nul": lambda: encode_tracks(TRACKS, seq=7, stamp=STAMP, trailing_nul=False),
     "opt_v2_empty": lambda: encode_tracks((), seq=8, stamp=STAMP),
-    "opt_heartbeat": lambda: [encode_heartbeat([59, 60], 60, seq=5694, stamp=STAMP)],
-    "opt_heartbeat_empty": lambda: [encode_heartbeat([], 60, seq=5695, stamp=STAMP)],
+    "opt_heartbeat": lambda: [encode_opt_heartbeat([59, 60], 60, seq=5694, stamp=STAMP)],
+    "opt_heartbeat_empty": lambda: [encode_opt_heartbeat([], 60, seq=5695, stamp=STAMP)],
 }
 
 
