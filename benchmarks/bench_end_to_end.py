@@ -28,10 +28,11 @@ from pathlib import Path
 
 import yaml
 
-from benchmarks.common import emit, free_port, percentiles
+from benchmarks.common import emit, percentiles
 from openptrack_py.config import ZenohConfig
 from openptrack_py.messages import Detection, DetectionBatch, encode_detection_batch
 from openptrack_py.output.opt_json import parse_datagram
+from openptrack_py.runtime.ports import free_port
 from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
 

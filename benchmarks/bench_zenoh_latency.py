@@ -19,9 +19,10 @@ import time
 from pathlib import Path
 
 from benchmarks.bench_codec import batch
-from benchmarks.common import emit, free_port, percentiles
+from benchmarks.common import emit, percentiles
 from openptrack_py.config import ZenohConfig
 from openptrack_py.messages import encode_detection_batch
+from openptrack_py.runtime.ports import free_port
 from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
 

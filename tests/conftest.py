@@ -16,7 +16,6 @@ Neither sets a per-example deadline: tests never assert wall-clock times.
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -28,6 +27,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from openptrack_py.config import ZenohConfig
+from openptrack_py.runtime.ports import free_port  # also imported from here by tests
 from openptrack_py.sim.world import Snapshot
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -50,13 +50,6 @@ def pytest_report_header(config: pytest.Config) -> str | None:
     if config.option.verbose >= 1:
         return None
     return f"hypothesis profile {settings.get_current_profile_name()!r} (HYPOTHESIS_PROFILE)"
-
-
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that was free a moment ago."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture
