@@ -3,6 +3,10 @@
 Prints one JSON line: encode/decode microseconds for our orjson codec (with full
 validation on decode) and for ``json.dumps``/``json.loads`` of the same dict (no
 validation), and the payload size.
+
+Run from the repository root::
+
+    python -m benchmarks.bench_codec
 """
 
 from __future__ import annotations

@@ -40,10 +40,14 @@ detector mean over each baseline, and detector mean over the renderer's mean.
 
 Single thread: ``OMP_NUM_THREADS``, ``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS`` default
 to 1 at the top of this module, before numpy is imported; ``single_thread_env_effective``
-says whether that happened before numpy was loaded (under ``run_all.py`` it is already
-loaded, so export the variables in the shell, as ``make bench`` does).
+says whether that happened before numpy was loaded (under ``benchmarks.run_all`` it is
+already loaded, so export the variables in the shell, as ``make bench`` does).
 
 Prints one JSON line (milliseconds unless named otherwise).
+
+Run from the repository root::
+
+    python -m benchmarks.bench_detector [--frames N] [--passes N]
 """
 
 # ruff: noqa: E402  (the thread variables must be set before numpy is imported)
@@ -61,9 +65,6 @@ for _var in _THREAD_VARS:
 import argparse
 import gc
 import time
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np
 

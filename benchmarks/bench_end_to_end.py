@@ -5,12 +5,16 @@ Latency: this process publishes detection batches over Zenoh (30 Hz, one person 
 raw``, one UDP JSON sink to this process) run as separate processes; each datagram's
 header stamp is the stamp of the batch that produced it, so ``receive time - stamp`` is
 the time from the detection put to the datagram out, through two Zenoh hops, the tracker
-step and the UDP encoder. Target (DESIGN §7): p50 <= 2 ms, p99 <= 10 ms.
+step and the UDP encoder. Target: p50 <= 2 ms, p99 <= 10 ms.
 
 Jitter: the same chain with ``source: smoothed`` at 30 Hz; the spread of the gaps
 between datagrams received here (the smoother's fixed-rate ticker plus the UDP send).
 
 Prints one JSON line (milliseconds).
+
+Run from the repository root::
+
+    python -m benchmarks.bench_end_to_end
 """
 
 from __future__ import annotations
@@ -28,10 +32,11 @@ from pathlib import Path
 
 import yaml
 
-from benchmarks.common import emit, free_port, percentiles
+from benchmarks.common import emit, percentiles
 from openptrack_py.config import ZenohConfig
 from openptrack_py.messages import Detection, DetectionBatch, encode_detection_batch
 from openptrack_py.output.opt_json import parse_datagram
+from openptrack_py.runtime.ports import free_port
 from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
 

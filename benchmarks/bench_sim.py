@@ -2,6 +2,10 @@
 
 Runs ``stress`` (120 people, 10 sensors at 30 Hz) and ``crowd`` (7 people, 3 sensors)
 offline, without sleeping, and prints one JSON line.
+
+Run from the repository root::
+
+    python -m benchmarks.bench_sim
 """
 
 from __future__ import annotations

@@ -89,6 +89,10 @@ the harness's ``HypothesisFeed`` protocol. Every configuration choice:
 
 Prints one JSON line: per seed and mean, for each tracker, MOTA, MOTP, IDF1, ID
 switches, FP, FN and ms per batch, plus the speed ratio.
+
+Run from the repository root::
+
+    python -m benchmarks.bench_stonesoup [--seeds S ...] [--duration S] [--stock-deleter]
 """
 
 from __future__ import annotations

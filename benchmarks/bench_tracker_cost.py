@@ -1,4 +1,4 @@
-"""Tracker cost per detection batch at 5, 20, 100 and 300 confirmed tracks (DESIGN §7).
+"""Tracker cost per detection batch at 5, 20, 100 and 300 confirmed tracks.
 
 Scene: ``n`` people standing on a square grid 1.5 m apart, all drifting slowly the same
 way (0.3 m/s along x, 0.1 m/s along y) with a small individual sway (0.1 m, 4 s
@@ -24,10 +24,14 @@ Single thread: ``OMP_NUM_THREADS``, ``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS`
 to 1 at the top of this module, before numpy is imported. That only takes effect when
 this module is the first to import numpy (``python -m benchmarks.bench_tracker_cost``);
 ``single_thread_env_effective`` in the output says whether it did (under
-``run_all.py`` numpy is already loaded, so export the variables in the shell instead).
+``benchmarks.run_all`` numpy is already loaded, so export the variables in the shell instead).
 
-Prints one JSON line (milliseconds per batch: p50 and mean) with the DESIGN §7 targets:
+Prints one JSON line (milliseconds per batch: p50 and mean) with the targets:
 <= 1 ms at 20 tracks, <= 5 ms at 100 tracks.
+
+Run from the repository root::
+
+    python -m benchmarks.bench_tracker_cost [--batches N] [--counts N ...]
 """
 
 # ruff: noqa: E402  (the thread variables must be set before numpy is imported)

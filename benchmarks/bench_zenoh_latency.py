@@ -5,6 +5,10 @@ A child process publishes encoded 20-detection batches at 200 Hz through ``Zenoh
 receives them and records ``receive - put`` on the shared monotonic clock. The same
 is measured for a raw UDP socket between the same two processes, in the same run, as the
 floor Python can reach. Prints one JSON line (milliseconds).
+
+Run from the repository root::
+
+    python -m benchmarks.bench_zenoh_latency [--count N] [--rate HZ]
 """
 
 from __future__ import annotations
@@ -19,9 +23,10 @@ import time
 from pathlib import Path
 
 from benchmarks.bench_codec import batch
-from benchmarks.common import emit, free_port, percentiles
+from benchmarks.common import emit, percentiles
 from openptrack_py.config import ZenohConfig
 from openptrack_py.messages import encode_detection_batch
+from openptrack_py.runtime.ports import free_port
 from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
 
@@ -125,8 +130,8 @@ def main(count: int = 2000, rate_hz: float = 200.0) -> dict[str, object]:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--child", nargs=2, metavar=("MODE", "TARGET"))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--child", nargs=2, metavar=("MODE", "TARGET"), help=argparse.SUPPRESS)
     parser.add_argument("--count", type=int, default=2000)
     parser.add_argument("--rate", type=float, default=200.0)
     args = parser.parse_args()

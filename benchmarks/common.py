@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import platform
-import socket
 import sys
 import time
 from collections.abc import Callable
@@ -45,10 +44,3 @@ def emit(name: str, figures: dict[str, object]) -> dict[str, object]:
     out = {"benchmark": name, **figures}
     print(json.dumps(out), flush=True)
     return out
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    """A loopback port (TCP by default) that was free a moment ago."""
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]

@@ -1,9 +1,21 @@
-"""Shared fixtures: free loopback ports, Zenoh settings for tests, subprocess helpers."""
+"""Shared fixtures: hypothesis profiles, free loopback ports, Zenoh settings, subprocesses.
+
+Hypothesis profiles, chosen with the ``HYPOTHESIS_PROFILE`` environment variable (or
+pytest's ``--hypothesis-profile``):
+
+``dev`` (default)
+    Random examples, remembered in ``.hypothesis/``; a failure prints the falsifying example
+    and a ``@reproduce_failure(...)`` line that replays it anywhere.
+``ci``
+    Derandomized: the same examples on every run (``.ci/run`` selects it), so a red CI run
+    is red again on a laptop with ``HYPOTHESIS_PROFILE=ci``; failures print the blob too.
+
+Neither sets a per-example deadline: tests never assert wall-clock times.
+"""
 
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -12,19 +24,32 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, settings
 
 from openptrack_py.config import ZenohConfig
+from openptrack_py.runtime.ports import free_port  # also imported from here by tests
 from openptrack_py.sim.world import Snapshot
 
 ROOT = Path(__file__).resolve().parent.parent
 PROCS = Path(__file__).resolve().parent / "procs"
 
+settings.register_profile("dev", deadline=None, print_blob=True)
+settings.register_profile(
+    "ci",
+    derandomize=True,
+    max_examples=100,
+    deadline=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],  # shared CI machines are slow at times
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
 
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that was free a moment ago."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+
+def pytest_report_header(config: pytest.Config) -> str | None:
+    """Name the hypothesis profile in the header (hypothesis itself does only with -v)."""
+    if config.option.verbose >= 1:
+        return None
+    return f"hypothesis profile {settings.get_current_profile_name()!r} (HYPOTHESIS_PROFILE)"
 
 
 @pytest.fixture

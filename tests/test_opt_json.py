@@ -6,16 +6,17 @@ import json
 import math
 import shutil
 import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from openptrack_py.errors import WireFormatError
 from openptrack_py.messages import Track, Visibility
 from openptrack_py.output.opt_json import (
-    encode_heartbeat,
+    encode_opt_heartbeat,
     encode_tracks,
     number,
     parse_datagram,
@@ -38,8 +39,8 @@ CASES = {
     "opt_v1_tracks": lambda: encode_tracks(TRACKS, seq=123, stamp=STAMP, fmt="opt-v1"),
     "opt_v2_tracks_no_nul": lambda: encode_tracks(TRACKS, seq=7, stamp=STAMP, trailing_nul=False),
     "opt_v2_empty": lambda: encode_tracks((), seq=8, stamp=STAMP),
-    "opt_heartbeat": lambda: [encode_heartbeat([59, 60], 60, seq=5694, stamp=STAMP)],
-    "opt_heartbeat_empty": lambda: [encode_heartbeat([], 60, seq=5695, stamp=STAMP)],
+    "opt_heartbeat": lambda: [encode_opt_heartbeat([59, 60], 60, seq=5694, stamp=STAMP)],
+    "opt_heartbeat_empty": lambda: [encode_opt_heartbeat([], 60, seq=5695, stamp=STAMP)],
 }
 
 
@@ -119,7 +120,43 @@ tracks = st.lists(
 )
 
 
+def _no_constants(token: str) -> object:
+    raise ValueError(f"non-standard JSON constant {token}")
+
+
+def strict_loads(text: str) -> object:
+    """``json.loads`` that refuses ``NaN``/``Infinity``/``-Infinity`` tokens."""
+    return json.loads(text, parse_constant=_no_constants)
+
+
+def numbers(obj: object) -> Iterator[float]:
+    """Every number in a decoded JSON value (booleans are not numbers)."""
+    if isinstance(obj, dict):
+        for value in obj.values():
+            yield from numbers(value)
+    elif isinstance(obj, list):
+        for value in obj:
+            yield from numbers(value)
+    elif isinstance(obj, int | float) and not isinstance(obj, bool):
+        yield obj
+
+
+def test_the_number_check_rejects_non_finite_numbers_not_names() -> None:
+    for bad in ('{"x":NaN}', '{"x":Infinity}', '{"x":-Infinity}'):
+        with pytest.raises(ValueError, match="non-standard"):
+            strict_loads(bad)
+    assert not all(map(math.isfinite, numbers(strict_loads('{"x":[1e999]}'))))  # overflows
+    assert list(numbers(strict_loads('{"face_name":"NaN","x":1.5,"ok":true}'))) == [1.5]
+
+
 @settings(max_examples=120, deadline=None)
+@example(  # a person called "NaN" is a string, not a number (once a flaky text check)
+    tracks=[Track(1, 0.0, 0.0, 0.0, 1.7, 0.0, 0.0, 1.0, 1.0, stable_id=1, identity="NaN")],
+    fmt="opt-v2",
+    nul=True,
+    max_bytes=600,
+    stamp=0.0,
+)
 @given(
     tracks=tracks,
     fmt=st.sampled_from(["opt-v2", "opt-v1"]),
@@ -140,9 +177,10 @@ def test_every_datagram_is_one_openptrack_object(
         assert data.endswith(b"]}\x00" if nul else b"]}")
         assert data.count(b"\x00") == (1 if nul else 0)
         text = data.rstrip(b"\x00").decode()
-        obj = json.loads(text)  # exactly one object: trailing garbage would raise
+        obj = strict_loads(text)  # exactly one standard JSON object: no NaN, no garbage
+        assert all(math.isfinite(v) for v in numbers(obj))
         assert list(obj) == ["header", root]  # header first, the tracks array last
-        assert text.startswith('{"header"') and "NaN" not in text and "nan" not in text
+        assert text.startswith('{"header"')
         header = obj["header"]
         assert header["seq"] == 42 and header["frame_id"] == "world"
         assert all(isinstance(header["stamp"][k], int) for k in ("sec", "nsec"))

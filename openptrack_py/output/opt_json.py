@@ -117,16 +117,36 @@ def encode_tracks(
     return out
 
 
-def encode_heartbeat(
+def encode_opt_heartbeat(
     alive_ids: Iterable[int], max_id: int, *, seq: int, stamp: float, trailing_nul: bool = True
 ) -> bytes:
-    """An ``alive_IDs`` / ``max_ID`` heartbeat datagram."""
+    """An OpenPTrack UDP heartbeat datagram (``alive_IDs`` / ``max_ID``).
+
+    Not to be confused with :func:`openptrack_py.messages.codec.encode_heartbeat`, the
+    tracker's internal Zenoh heartbeat message.
+
+    Parameters
+    ----------
+    alive_ids : iterable of int
+        Ids of the tracks alive now.
+    max_id : int
+        The largest id ever given out.
+    seq, stamp : int, float
+        Header sequence number and time (seconds).
+    trailing_nul : bool
+        End the datagram with one NUL byte, as OpenPTrack does.
+
+    Returns
+    -------
+    bytes
+        One datagram, however long ``alive_ids`` is (see :func:`encode_opt_heartbeats`).
+    """
     ids = ",".join(str(int(i)) for i in alive_ids)
     data = f'{_header(seq, stamp, "heartbeat")},"alive_IDs":[{ids}],"max_ID":{int(max_id)}}}'
     return data.encode() + (_NUL if trailing_nul else b"")
 
 
-def encode_heartbeats(
+def encode_opt_heartbeats(
     alive_ids: Sequence[int],
     max_id: int,
     *,
@@ -135,20 +155,21 @@ def encode_heartbeats(
     trailing_nul: bool = True,
     max_bytes: int = 65507,
 ) -> list[bytes]:
-    """A heartbeat as datagrams of at most ``max_bytes``.
+    """An OpenPTrack UDP heartbeat as datagrams of at most ``max_bytes``.
 
     Normally one; a very long ``alive_IDs`` list is split over several complete
-    heartbeats with the same header, each listing part of the ids.
+    heartbeats with the same header, each listing part of the ids. Arguments as for
+    :func:`encode_opt_heartbeat`.
     """
     ids = list(alive_ids)
-    whole = encode_heartbeat(ids, max_id, seq=seq, stamp=stamp, trailing_nul=trailing_nul)
+    whole = encode_opt_heartbeat(ids, max_id, seq=seq, stamp=stamp, trailing_nul=trailing_nul)
     if len(whole) <= max_bytes or len(ids) <= 1:
         return [whole]
     half = len(ids) // 2
     return [
-        *encode_heartbeats(ids[:half], max_id, seq=seq, stamp=stamp,
+        *encode_opt_heartbeats(ids[:half], max_id, seq=seq, stamp=stamp,
                            trailing_nul=trailing_nul, max_bytes=max_bytes),
-        *encode_heartbeats(ids[half:], max_id, seq=seq, stamp=stamp,
+        *encode_opt_heartbeats(ids[half:], max_id, seq=seq, stamp=stamp,
                            trailing_nul=trailing_nul, max_bytes=max_bytes),
     ]  # fmt: skip
 

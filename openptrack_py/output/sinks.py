@@ -17,7 +17,7 @@ from typing import Protocol
 
 from openptrack_py.config import UdpSinkConfig
 from openptrack_py.messages.track import TrackBatch
-from openptrack_py.output.opt_json import encode_heartbeats, encode_tracks
+from openptrack_py.output.opt_json import encode_opt_heartbeats, encode_tracks
 from openptrack_py.runtime.counters import Counters
 from openptrack_py.runtime.logs import RateLimitedLog
 
@@ -196,7 +196,7 @@ class UdpJsonSink:
             return
         self._next_heartbeat = now + self.cfg.heartbeat_interval_s
         self._heartbeat_seq += 1
-        for data in encode_heartbeats(
+        for data in encode_opt_heartbeats(
             self._alive,
             self._max_id,
             seq=self._heartbeat_seq,
