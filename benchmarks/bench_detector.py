@@ -77,8 +77,7 @@ from openptrack_py.errors import ConfigError
 from openptrack_py.eval.detector import scenario_for_sensor_type
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.sim.render import DepthRenderer
-from openptrack_py.sim.scenarios import Scenario
-from openptrack_py.sim.simulator import scenario_world
+from openptrack_py.sim.scenarios import Scenario, scenario_world
 from openptrack_py.sim.world import Snapshot
 
 SEED = 0

@@ -23,13 +23,14 @@ from openptrack_py.detection.service import DetectorService, source_for_sensor
 from openptrack_py.errors import ConfigError, SourceError
 from openptrack_py.runtime.entry import node_parser, run_node
 from openptrack_py.runtime.node import Node
+from openptrack_py.sim.depth_source import sim_source_for_sensor
 
 
 def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     """Detect until the source ends or the node is stopped."""
     sensor = cfg.sensor(args.sensor)
     try:
-        source = source_for_sensor(cfg, sensor, args.input)
+        source = source_for_sensor(cfg, sensor, args.input, sim_source_for_sensor)
     except SourceError as exc:
         raise ConfigError(f"sensors.{sensor.id}: {exc}") from None
     DetectorService(node, sensor, cfg.detector, source).run()

@@ -44,9 +44,9 @@ from openptrack_py.messages import (
     decode_track_batch,
 )
 from openptrack_py.runtime.node import Node
-from openptrack_py.sim.depth_source import scenario_world
 from openptrack_py.sim.live import scenario_from_network
 from openptrack_py.sim.render import DepthRenderer
+from openptrack_py.sim.scenarios import scenario_world
 from openptrack_py.sim.sensors import SensorSpec
 from openptrack_py.sim.world import Room, Snapshot
 from openptrack_py.transport import MemoryBus, Sample

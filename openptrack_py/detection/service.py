@@ -27,36 +27,35 @@ from openptrack_py.runtime.node import Inbox, Node
 _CAMERA_DEFAULTS = {"realsense": "realsense"}
 
 
-def source_for_sensor(cfg: NetworkConfig, sensor: SensorConfig, spec: str | None = None) -> Source:
+def source_for_sensor(
+    cfg: NetworkConfig,
+    sensor: SensorConfig,
+    spec: str | None = None,
+    sim_source: Callable[[NetworkConfig, SensorConfig], Source] | None = None,
+) -> Source:
     """Open the frame source of a network's sensor.
 
-    ``sim`` sensors render the network's scenario (``sim.sensor_model: rgbd``); ``camera``
-    and ``recording`` sensors open ``spec`` or the sensor's ``input``. A recorded folder
-    replays in real time at the sensor's rate (its frames keep their recorded stamps;
-    the tracker's clock alignment absorbs the offset).
+    ``sim`` sensors render the network's scenario (``sim.sensor_model: rgbd``) through
+    ``sim_source`` (the simulator's, given by the caller: detection does not depend on
+    the simulator); ``camera`` and ``recording`` sensors open ``spec`` or the sensor's
+    ``input``. A recorded folder replays in real time at the sensor's rate (its frames
+    keep their recorded stamps; the tracker's clock alignment absorbs the offset).
 
     Raises
     ------
     ConfigError
-        When a camera or recording sensor says nowhere to read from.
+        When a camera or recording sensor says nowhere to read from, or a simulated
+        sensor has no ``sim_source``.
     SourceError
         When the source cannot be opened.
     """
     if spec is None and sensor.source == "sim":
-        import time
-
-        from openptrack_py.sim.depth_source import SimDepthSource
-        from openptrack_py.sim.live import scenario_from_network
-
-        assert cfg.sim is not None  # the network file validates this
-        start = cfg.sim.start_time if cfg.sim.start_time is not None else time.time()
-        return SimDepthSource(
-            scenario_from_network(cfg),
-            sensor.id,
-            start_time=start,
-            speed=cfg.sim.speed,
-            rate_hz=cfg.detector.rate_hz,
-        )
+        if sim_source is None:
+            raise ConfigError(
+                f"sensors.{sensor.id}: a simulated sensor needs the simulator's frames "
+                "(give an --input, or run it through the detector node)"
+            )
+        return sim_source(cfg, sensor)
     spec = spec or sensor.input or _CAMERA_DEFAULTS.get(sensor.type)
     if spec is None:
         raise ConfigError(

@@ -26,9 +26,8 @@ from openptrack_py.config import DetectorConfig, SensorConfig
 from openptrack_py.detection.pipeline import RANGE_CUT_M, PeopleDetector
 from openptrack_py.geometry import apply, world_from_optical
 from openptrack_py.sim.render import DepthRenderer
-from openptrack_py.sim.scenarios import Scenario, build_scenario
+from openptrack_py.sim.scenarios import Scenario, build_scenario, scenario_world
 from openptrack_py.sim.sensors import SENSOR_TYPES
-from openptrack_py.sim.simulator import scenario_world
 
 
 @dataclass

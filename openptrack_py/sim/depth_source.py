@@ -1,9 +1,11 @@
 """A rendered simulated sensor as a depth source (``sensor_model: rgbd``).
 
 :class:`SimDepthSource` plays a scenario's world and renders one sensor's view at that
-sensor's rate. Every process that simulates part of a scenario builds the same world
-from the same seed, so a detector node rendering its sensor and the ``sim`` node
-publishing ground truth agree on where everybody is, given a shared ``start_time``.
+sensor's rate; :func:`sim_source_for_sensor` opens it for a network file's simulated
+sensor, which is how a detector node runs on the simulator. Every process that
+simulates part of a scenario builds the same world from the same seed, so a detector
+node rendering its sensor and the ``sim`` node publishing ground truth agree on where
+everybody is, given a shared ``start_time``.
 """
 
 from __future__ import annotations
@@ -14,16 +16,12 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from openptrack_py.config import DetectorConfig
+from openptrack_py.config import NetworkConfig, SensorConfig
 from openptrack_py.detection.frame import Frame, Intrinsics
-from openptrack_py.detection.pipeline import PeopleDetector
 from openptrack_py.errors import ConfigError
-from openptrack_py.geometry import world_from_optical
+from openptrack_py.sim.live import scenario_from_network
 from openptrack_py.sim.render import DepthRenderer
-from openptrack_py.sim.scenarios import Scenario
-from openptrack_py.sim.sensors import Observation, SensorModel, SensorSpec
-from openptrack_py.sim.simulator import scenario_world
-from openptrack_py.sim.world import Room, Snapshot
+from openptrack_py.sim.scenarios import Scenario, scenario_world
 
 
 class SimDepthSource:
@@ -122,57 +120,24 @@ class SimDepthSource:
         self.close()
 
 
-class RenderedSensorModel:
-    """A sensor simulated at the image level: render, then run the real detector.
+def sim_source_for_sensor(cfg: NetworkConfig, sensor: SensorConfig) -> SimDepthSource:
+    """The rendered frames of a network's ``source: sim`` sensor, in real time.
 
-    A drop-in for :class:`~openptrack_py.sim.sensors.SensorModel` in the
-    :class:`~openptrack_py.sim.simulator.Simulator` (``sensor_model="rgbd"``), so that
-    evaluation can score the whole chain, detector included, faster than real time.
+    Every process builds the network's scenario from the same seed and starts it at
+    ``sim.start_time`` (now if unset), so renderings agree with the ``sim`` node's truth.
 
-    Parameters
-    ----------
-    spec : SensorSpec
-        The sensor.
-    room : Room
-        The room.
-    rng : numpy.random.Generator
-        Rendering noise.
-    config : DetectorConfig, optional
-        Detector settings.
+    Raises
+    ------
+    ConfigError
+        If the network has no ``sim`` section or the sensor is not simulated.
     """
-
-    def __init__(
-        self,
-        spec: SensorSpec,
-        room: Room,
-        rng: np.random.Generator,
-        config: DetectorConfig | None = None,
-    ) -> None:
-        self.spec = spec
-        self.renderer = DepthRenderer(spec, room, rng)
-        self.detector = PeopleDetector(
-            config or DetectorConfig(),
-            world_from_camera=world_from_optical(spec.pose),
-            sensor_type=spec.type.name,
-            rate_hz=spec.rate_hz,
-            rng=np.random.default_rng(0),
-        )
-        self._coverage = SensorModel(spec, room, np.random.default_rng(0))
-
-    def covers(self, pos: np.ndarray, height: np.ndarray) -> np.ndarray:
-        """Mask of people whose head is in view (occlusion ignored)."""
-        return self._coverage.covers(pos, height)
-
-    def observe(self, snap: Snapshot) -> Observation:
-        """Render ``snap`` and detect; person ids by nearest truth within 0.3 m (else 0)."""
-        result = self.detector.detect(self.renderer.render(snap).frame)
-        detections = tuple(d.to_detection() for d in result.detections)
-        ids = []
-        for d in detections:
-            if len(snap):
-                gap = np.hypot(snap.pos[:, 0] - d.x, snap.pos[:, 1] - d.y)
-                best = int(np.argmin(gap))
-                ids.append(int(snap.ids[best]) if gap[best] <= 0.3 else 0)
-            else:
-                ids.append(0)
-        return Observation(detections, tuple(ids))
+    scenario = scenario_from_network(cfg)
+    assert cfg.sim is not None  # scenario_from_network checked it
+    start = cfg.sim.start_time if cfg.sim.start_time is not None else time.time()
+    return SimDepthSource(
+        scenario,
+        sensor.id,
+        start_time=start,
+        speed=cfg.sim.speed,
+        rate_hz=cfg.detector.rate_hz,
+    )

@@ -625,3 +625,14 @@ def build_scenario(
         make_director=make_director,
         description=description,
     )
+
+
+def scenario_world(scenario: Scenario, dt: float = 0.04) -> World:
+    """The scenario's world, seeded as :class:`Simulator` seeds it.
+
+    Every process that simulates part of a scenario builds its world with this, so they
+    all agree on where everybody is.
+    """
+    world_seq, _ = np.random.SeedSequence(scenario.seed).spawn(2)
+    rng = np.random.default_rng(world_seq)
+    return World(scenario.room, scenario.make_director(rng), rng, dt=dt)

@@ -9,8 +9,9 @@ sleeps until each event's time, and offline evaluation, which does not sleep at 
 from __future__ import annotations
 
 import heapq
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -18,9 +19,9 @@ from openptrack_py.config import DetectorConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.ground_truth import GroundTruthFrame, PersonState
-from openptrack_py.sim.scenarios import Scenario
-from openptrack_py.sim.sensors import SensorModel
-from openptrack_py.sim.world import Snapshot, World
+from openptrack_py.sim.scenarios import Scenario, scenario_world
+from openptrack_py.sim.sensors import Observation, SensorModel, SensorSpec
+from openptrack_py.sim.world import Snapshot
 
 DEFAULT_START_TIME = 1_767_225_600.0
 """2026-01-01T00:00:00Z: the clock of offline runs, so their stamps are reproducible."""
@@ -70,15 +71,48 @@ Event = SensorFrame | TruthFrame
 _TRUTH = -1
 
 
-def scenario_world(scenario: Scenario, dt: float = 0.04) -> World:
-    """The scenario's world, seeded as :class:`Simulator` seeds it.
+class SimSensorModel(Protocol):
+    """What the simulator needs of a sensor model: its sensor, its view, its detections."""
 
-    Every process that simulates part of a scenario builds its world with this, so they
-    all agree on where everybody is.
-    """
-    world_seq, _ = np.random.SeedSequence(scenario.seed).spawn(2)
-    rng = np.random.default_rng(world_seq)
-    return World(scenario.room, scenario.make_director(rng), rng, dt=dt)
+    spec: SensorSpec
+
+    def covers(self, pos: np.ndarray, height: np.ndarray) -> np.ndarray:
+        """Mask of people whose head is in view (occlusion ignored)."""
+
+    def observe(self, snap: Snapshot) -> Observation:
+        """What the sensor reports of a world snapshot."""
+
+
+def _detection_models(
+    scenario: Scenario, detector_config: DetectorConfig | None
+) -> list[SimSensorModel]:
+    """The detection-level model of every sensor (the default: fast)."""
+    specs = scenario.sensors
+    _, sensor_seq = np.random.SeedSequence(scenario.seed).spawn(2)
+    return [
+        SensorModel(spec, scenario.room, np.random.default_rng(seq))
+        for spec, seq in zip(specs, sensor_seq.spawn(len(specs)), strict=True)
+    ]
+
+
+def _rendered_models(
+    scenario: Scenario, detector_config: DetectorConfig | None
+) -> list[SimSensorModel]:
+    """Rendered images through the real detector, per sensor (slow, detector in the loop)."""
+    from openptrack_py.sim.rendered_model import RenderedSensorModel
+
+    rngs = [np.random.default_rng([scenario.seed, 41, i]) for i in range(len(scenario.sensors))]
+    return [
+        RenderedSensorModel(spec, scenario.room, rng, detector_config)
+        for spec, rng in zip(scenario.sensors, rngs, strict=True)
+    ]
+
+
+SENSOR_MODELS: dict[str, Callable[[Scenario, DetectorConfig | None], list[SimSensorModel]]] = {
+    "detections": _detection_models,
+    "rgbd": _rendered_models,
+}
+"""Sensor models by the name a network file or ``openptrack eval`` uses."""
 
 
 class Simulator:
@@ -115,25 +149,11 @@ class Simulator:
         self.start_time = start_time
         self.ground_truth_rate_hz = ground_truth_rate_hz
         self.world = scenario_world(scenario, dt)
-        specs = scenario.sensors
-        if sensor_model == "detections":
-            _, sensor_seq = np.random.SeedSequence(scenario.seed).spawn(2)
-            self.models = [
-                SensorModel(spec, scenario.room, np.random.default_rng(seq))
-                for spec, seq in zip(specs, sensor_seq.spawn(len(specs)), strict=True)
-            ]
-        elif sensor_model == "rgbd":
-            from openptrack_py.sim.depth_source import RenderedSensorModel
-
-            rngs = [np.random.default_rng([scenario.seed, 41, i]) for i in range(len(specs))]
-            self.models = [
-                RenderedSensorModel(spec, scenario.room, rng, detector_config)
-                for spec, rng in zip(specs, rngs, strict=True)
-            ]
-        else:
+        if sensor_model not in SENSOR_MODELS:
             raise ConfigError(
-                f"sensor_model: unknown {sensor_model!r} (allowed: detections, rgbd)"
+                f"sensor_model: unknown {sensor_model!r} (allowed: {', '.join(SENSOR_MODELS)})"
             )
+        self.models = SENSOR_MODELS[sensor_model](scenario, detector_config)
         self._frame_rngs = [
             np.random.default_rng([scenario.seed, 11, i]) for i in range(len(self.models))
         ]
