@@ -1,0 +1,86 @@
+"""The ``openptrack`` command.
+
+Subcommands::
+
+    openptrack launch NETWORK [--host NAME] [--duration S]   run this host's nodes
+    openptrack node NAME [...]                               run one node in the foreground
+    openptrack status [-c NETWORK]                           live nodes and their rates
+    openptrack echo KEYEXPR [-c NETWORK]                     print messages as JSON lines
+    openptrack config NODE [KEY=VALUE ...]                   change a running node's parameters
+    openptrack eval --scenario NAME --seed N                 score a tracker on a scenario
+    openptrack scenarios                                     list the simulated scenarios
+    openptrack show-config NETWORK                           the validated network file
+    openptrack record-sensor SOURCE OUTDIR                   record a depth source to a folder
+    openptrack detect INPUT                                  detect people in depth frames
+    openptrack eval-detector --scenario NAME                 score the detector on renderings
+
+``openptrack <subcommand> --help`` explains each. Each subcommand is one module of this
+package with ``add_parser(subparsers)`` and ``run(args) -> int``; modules needed only to run a
+command are imported inside its ``run``, so ``openptrack --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from openptrack_py import __version__
+from openptrack_py.cli import (
+    configure,
+    detect,
+    echo,
+    eval_detector,
+    eval_tracker,
+    launch,
+    node,
+    record_sensor,
+    scenarios,
+    show_config,
+    status,
+)
+from openptrack_py.cli.common import EXIT_CONFIG
+from openptrack_py.cli.launch import RGBD_START_DELAY_S
+from openptrack_py.cli.node import available_nodes
+from openptrack_py.errors import ConfigError
+
+__all__ = ["EXIT_CONFIG", "RGBD_START_DELAY_S", "available_nodes", "build_parser", "main"]
+
+COMMANDS = (
+    launch,
+    node,
+    status,
+    echo,
+    configure,
+    eval_tracker,
+    scenarios,
+    show_config,
+    record_sensor,
+    detect,
+    eval_detector,
+)
+"""The subcommand modules, in the order ``openptrack --help`` lists them."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``openptrack`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog="openptrack",
+        description="Multi-sensor people tracking for creative apps.",
+    )
+    parser.add_argument("--version", action="version", version=f"openptrack {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for command in COMMANDS:
+        command.add_parser(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``openptrack`` command."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except ConfigError as exc:
+        print(f"openptrack {args.command}: {exc}", file=sys.stderr)
+        return EXIT_CONFIG

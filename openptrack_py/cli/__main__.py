@@ -1,0 +1,7 @@
+"""``python -m openptrack_py.cli``: the ``openptrack`` command without the console script."""
+
+import sys
+
+from openptrack_py.cli import main
+
+sys.exit(main())
