@@ -17,6 +17,7 @@ from openptrack_py.tracking.base import (
     MotionModel,
     Stateful,
 )
+from openptrack_py.tracking.factory import build_tracker
 from openptrack_py.tracking.gating import ChiSquareGater
 from openptrack_py.tracking.identity import NullIdentity
 from openptrack_py.tracking.lifecycle import ConfidenceInitiator, TimeDeleter
@@ -25,7 +26,7 @@ from openptrack_py.tracking.motion import ConstantVelocity
 from openptrack_py.tracking.ordering import ClockAligner, ReorderBuffer
 from openptrack_py.tracking.pipeline import TrackingPipeline
 from openptrack_py.tracking.state import DetectionArrays, TrackTable
-from openptrack_py.tracking.tracker import Tracker, build_tracker
+from openptrack_py.tracking.tracker import Tracker
 from openptrack_py.tracking.ukf import MerweSigmaPoints, UnscentedKalmanFilter
 
 __all__ = [

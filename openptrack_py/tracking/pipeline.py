@@ -12,8 +12,9 @@ from dataclasses import replace
 from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.track import TrackBatch
+from openptrack_py.tracking.factory import build_tracker
 from openptrack_py.tracking.ordering import ClockAligner, ReorderBuffer
-from openptrack_py.tracking.tracker import Tracker, build_tracker
+from openptrack_py.tracking.tracker import Tracker
 
 
 class TrackingPipeline:

@@ -28,9 +28,9 @@ from openptrack_py.messages.codec import (
 from openptrack_py.messages.config_update import ConfigAck, ConfigUpdate
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.runtime.node import Inbox, Node, Received
+from openptrack_py.tracking.factory import build_tracker
 from openptrack_py.tracking.ordering import ClockAligner
 from openptrack_py.tracking.pipeline import TrackingPipeline
-from openptrack_py.tracking.tracker import build_tracker
 
 FIXED_WHILE_RUNNING = frozenset({"host"})
 """Parameters that only take effect at start-up."""

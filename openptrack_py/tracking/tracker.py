@@ -28,10 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.track import Track, TrackBatch, Visibility
-from openptrack_py.tracking.association import GlobalNearestNeighbour
 from openptrack_py.tracking.base import (
     Associator,
     Deleter,
@@ -42,11 +40,8 @@ from openptrack_py.tracking.base import (
     MotionModel,
     Stateful,
 )
-from openptrack_py.tracking.gating import ChiSquareGater, mahalanobis
+from openptrack_py.tracking.gating import mahalanobis
 from openptrack_py.tracking.identity import NullIdentity
-from openptrack_py.tracking.lifecycle import ConfidenceInitiator, TimeDeleter
-from openptrack_py.tracking.measurement import PositionMeasurement, PositionVelocityMeasurement
-from openptrack_py.tracking.motion import ConstantVelocity
 from openptrack_py.tracking.replay import ReplayHistory
 from openptrack_py.tracking.state import HISTORY, HISTORY_SPACING_S, DetectionArrays, TrackTable
 from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKalmanFilter
@@ -476,36 +471,3 @@ class Tracker:
             self.identity.ended(tb, np.flatnonzero(gone), t)
             self.counters["tracks_deleted"] += int(gone.sum())
             tb.keep(~gone)
-
-
-def build_tracker(config: TrackerConfig | None = None) -> Tracker:
-    """Assemble a :class:`Tracker` from a :class:`~openptrack_py.config.TrackerConfig`."""
-    cfg = config or TrackerConfig()
-    position = PositionMeasurement(cfg.measurement_sigma_m, cfg.measurement_sigma_per_m2)
-    measurement: MeasurementModel = position
-    if cfg.velocity_in_motion_term:
-        measurement = PositionVelocityMeasurement(position, cfg.velocity_sigma_mps)
-    return Tracker(
-        motion=ConstantVelocity(cfg.acceleration_variance),
-        measurement=measurement,
-        gater=ChiSquareGater(cfg.gate_probability, measurement.dim),
-        associator=GlobalNearestNeighbour(),
-        initiator=ConfidenceInitiator(
-            cfg.min_confidence_initialization, cfg.detections_to_validate
-        ),
-        deleter=TimeDeleter(cfg.sec_before_fake, cfg.sec_before_old, cfg.tentative_timeout_s),
-        identity=NullIdentity(),
-        detector_weight=cfg.detector_weight,
-        min_confidence_detections=cfg.min_confidence_detections,
-        min_confidence_keepalive=cfg.min_confidence_initialization,
-        confidence_decay_s=cfg.sec_before_old,
-        visibility_timeout_s=cfg.visibility_timeout_s,
-        initial_velocity_sigma_mps=cfg.initial_velocity_sigma_mps,
-        height_smoothing=cfg.height_smoothing,
-        publish_tentative=cfg.publish_tentative,
-        publish_unseen_s=cfg.publish_unseen_s,
-        late_policy=cfg.late_policy,
-        max_lateness_s=cfg.max_lateness_s,
-        max_replay_steps=cfg.max_replay_steps,
-        max_tracks=cfg.max_tracks,
-    )

@@ -1,0 +1,51 @@
+"""Assembling a tracker from its configuration: which role gets which parameters.
+
+:func:`build_tracker` is the one place that reads
+:class:`~openptrack_py.config.TrackerConfig`; the tracker and its roles take plain
+arguments, so tests and other front ends can compose them directly.
+"""
+
+from __future__ import annotations
+
+from openptrack_py.config import TrackerConfig
+from openptrack_py.tracking.association import GlobalNearestNeighbour
+from openptrack_py.tracking.base import MeasurementModel
+from openptrack_py.tracking.gating import ChiSquareGater
+from openptrack_py.tracking.identity import NullIdentity
+from openptrack_py.tracking.lifecycle import ConfidenceInitiator, TimeDeleter
+from openptrack_py.tracking.measurement import PositionMeasurement, PositionVelocityMeasurement
+from openptrack_py.tracking.motion import ConstantVelocity
+from openptrack_py.tracking.tracker import Tracker
+
+
+def build_tracker(config: TrackerConfig | None = None) -> Tracker:
+    """Assemble a :class:`Tracker` from a :class:`~openptrack_py.config.TrackerConfig`."""
+    cfg = config or TrackerConfig()
+    position = PositionMeasurement(cfg.measurement_sigma_m, cfg.measurement_sigma_per_m2)
+    measurement: MeasurementModel = position
+    if cfg.velocity_in_motion_term:
+        measurement = PositionVelocityMeasurement(position, cfg.velocity_sigma_mps)
+    return Tracker(
+        motion=ConstantVelocity(cfg.acceleration_variance),
+        measurement=measurement,
+        gater=ChiSquareGater(cfg.gate_probability, measurement.dim),
+        associator=GlobalNearestNeighbour(),
+        initiator=ConfidenceInitiator(
+            cfg.min_confidence_initialization, cfg.detections_to_validate
+        ),
+        deleter=TimeDeleter(cfg.sec_before_fake, cfg.sec_before_old, cfg.tentative_timeout_s),
+        identity=NullIdentity(),
+        detector_weight=cfg.detector_weight,
+        min_confidence_detections=cfg.min_confidence_detections,
+        min_confidence_keepalive=cfg.min_confidence_initialization,
+        confidence_decay_s=cfg.sec_before_old,
+        visibility_timeout_s=cfg.visibility_timeout_s,
+        initial_velocity_sigma_mps=cfg.initial_velocity_sigma_mps,
+        height_smoothing=cfg.height_smoothing,
+        publish_tentative=cfg.publish_tentative,
+        publish_unseen_s=cfg.publish_unseen_s,
+        late_policy=cfg.late_policy,
+        max_lateness_s=cfg.max_lateness_s,
+        max_replay_steps=cfg.max_replay_steps,
+        max_tracks=cfg.max_tracks,
+    )
