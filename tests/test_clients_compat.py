@@ -2,8 +2,8 @@
 
 A real simulator, tracker and output node run (``openptrack launch``); the output node has
 one UDP sink per configuration below, each aimed at a socket of this test. Every client's
-parsing rule is re-implemented here from OpenPTrack's reference (openptrack_v1.md §6, §7)
-and applied to the captured datagrams:
+parsing rule is re-implemented here from OpenPTrack's clients (as docs/clients.md describes
+them) and applied to the captured datagrams:
 
 * with the settings ``docs/clients.md`` documents for that client, every datagram of every
   matching sink must parse the way the client needs;

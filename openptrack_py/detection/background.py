@@ -2,7 +2,7 @@
 
 For ``seconds`` after start-up every frame's points (in the floor-aligned frame) mark
 their voxels as background; afterwards, points in a background voxel are removed before
-clustering (seed 003 §5.4, OpenPTrack's octree done as a sorted array of voxel keys).
+clustering (Munaro et al., OpenPTrack, §5.4: its octree done as a sorted array of voxel keys).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Key expressions of a site (DESIGN §1), and key-expression matching.
+"""Key expressions of a site (docs/design.md §1), and key-expression matching.
 
 Every process-crossing message lives under ``opt/<site>/``. Matching follows Zenoh's
 rules for the wildcards used here: ``*`` matches exactly one non-empty chunk and ``**``
