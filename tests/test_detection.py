@@ -192,7 +192,8 @@ def test_ground_tracker_refines_unless_locked_and_calibration_overrules_a_wrong_
         kept = locked.update(lowered)
     assert kept == first
     assert refined.offset == pytest.approx(first.offset + 0.02, abs=0.003)
-    # "both" (Munaro et al., OpenPTrack, §5.1): a calibration far from the estimate is kept, a close one yields
+    # "both" (Munaro et al., OpenPTrack, §5.1): a calibration far from the estimate is
+    # kept, a close one yields
     far = GroundPlane(truth.normal, truth.offset + 0.2, "calibration")
     both = GroundTracker(GroundConfig(mode="both"), far, rng=np.random.default_rng(0))
     assert both.update(points) == far

@@ -68,7 +68,10 @@ def hue_histograms(
 
 
 def hue_correlation(a: np.ndarray, b: np.ndarray) -> float:
-    """Pearson correlation of two hue histograms (the childcare tracking paper's colour similarity), in [-1, 1]."""
+    """Pearson correlation of two hue histograms, in [-1, 1].
+
+    The colour similarity of the childcare tracking paper.
+    """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     da, db = a - a.mean(), b - b.mean()

@@ -3,10 +3,11 @@
 The points of the height band (in a floor-aligned frame, ``z`` = height above the floor)
 fall into square cells of the floor. Occupied cells that touch (8-neighbourhood, with a
 one-cell tolerance for sparse far-away returns) form connected components, as the
-connected-component labelling of the childcare tracking paper (§2.1). Inside a component every local maximum of
-the height map that reaches ``min_top_m`` is a head candidate; candidates closer than
-``heads_minimum_distance_m`` belong to one head (the taller wins), so that people
-standing shoulder to shoulder become separate blobs while a person's shoulders do not.
+connected-component labelling of the childcare tracking paper (§2.1). Inside a component
+every local maximum of the height map that reaches ``min_top_m`` is a head candidate;
+candidates closer than ``heads_minimum_distance_m`` belong to one head (the taller wins),
+so that people standing shoulder to shoulder become separate blobs while a person's
+shoulders do not.
 Each cell goes to its nearest head. A blob survives if it has enough points and its
 footprint's width, length and area lie within the limits (Zhang et al., children
 behavior tracking, Eq. 3).

@@ -6,10 +6,10 @@ the camera's side of the floor), so ``n . p + d`` is a point's height above the 
 
 :func:`estimate_ground` finds planes by RANSAC, keeps those whose normal lies within an
 angle allowance of the expected up direction (Zhang et al., children behavior tracking,
-Eq. 1; OpenPTrack keeps
-``|n_y| >= 0.7``), and picks the lowest. :func:`choose_ground` is OpenPTrack's rule for
-choosing between an estimated and a calibrated plane (Munaro et al., OpenPTrack, §5.1): keep the estimate
-while it is valid and close to calibration, else calibration.
+Eq. 1; OpenPTrack keeps ``|n_y| >= 0.7``), and picks the lowest. :func:`choose_ground` is
+OpenPTrack's rule for choosing between an estimated and a calibrated plane (Munaro et al.,
+OpenPTrack, §5.1): keep the estimate while it is valid and close to calibration, else
+calibration.
 :class:`GroundTracker` holds the plane over time: found once, then locked or refined by a
 least-squares fit of its inliers in every frame.
 """
