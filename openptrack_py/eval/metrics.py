@@ -23,6 +23,11 @@ The identity measures IDF1, IDP and IDR [2]_ come from a global one-to-one assig
 ground-truth trajectories to hypothesis trajectories that maximises the number of frames
 in which an assigned pair is within the threshold (the identity true positives, IDTP).
 
+This module keeps the history (the accumulator) and the result type; the validation of
+each frame's input, the gating and the step-2 assignment are in
+:mod:`~openptrack_py.eval.matching`, the identity assignment in
+:mod:`~openptrack_py.eval.identity`.
+
 References
 ----------
 .. [1] K. Bernardin and R. Stiefelhagen, "Evaluating multiple object tracking
@@ -49,7 +54,17 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import linear_sum_assignment
+
+from openptrack_py.eval.identity import identity_true_positives
+from openptrack_py.eval.matching import (
+    EMPTY_IDS,
+    as_ids,
+    as_points,
+    check_max_distance,
+    distance_matrix,
+    max_matching_min_cost,
+    pairwise_distances,
+)
 
 __all__ = ["MotAccumulator", "MotMetrics", "distance_matrix"]
 
@@ -57,8 +72,6 @@ __all__ = ["MotAccumulator", "MotMetrics", "distance_matrix"]
 _MOSTLY_TRACKED_RATIO = 0.8
 # A ground-truth track matched in less than this fraction of its frames is mostly lost.
 _MOSTLY_LOST_RATIO = 0.2
-
-_EMPTY_IDS: NDArray[np.int64] = np.empty(0, dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -151,136 +164,6 @@ class MotMetrics:
         return out
 
 
-def _check_max_distance(max_distance_m: float) -> float:
-    """Validate the matching threshold and return it as a float."""
-    message = f"max_distance_m must be a finite number > 0 (metres); got {max_distance_m!r}"
-    if isinstance(max_distance_m, bool):
-        raise ValueError(message)
-    try:
-        value = float(max_distance_m)
-    except (TypeError, ValueError):
-        raise ValueError(message) from None
-    if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(message)
-    return value
-
-
-def _as_ids(ids: ArrayLike, name: str) -> NDArray[np.int64]:
-    """Validate one frame's ids: a 1-D sequence of distinct integers."""
-    try:
-        arr = np.asarray(ids)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a sequence of integers; got {ids!r}") from exc
-    if arr.size == 0:
-        if arr.ndim > 1 and arr.shape[-1] != 0:
-            raise ValueError(f"{name} must be 1-D; got shape {arr.shape}")
-        return _EMPTY_IDS
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be 1-D; got shape {arr.shape}")
-    if arr.dtype.kind not in "iu":
-        raise ValueError(f"{name} must contain integers; got dtype {arr.dtype}")
-    if arr.dtype.kind == "u" and int(arr.max()) > np.iinfo(np.int64).max:
-        raise ValueError(f"{name} contains ids larger than the int64 range")
-    arr = arr.astype(np.int64, copy=False)
-    if np.unique(arr).size != arr.size:
-        values, counts = np.unique(arr, return_counts=True)
-        duplicates = values[counts > 1].tolist()
-        raise ValueError(f"{name} must be unique within a frame; duplicated ids: {duplicates}")
-    return arr
-
-
-def _as_points(
-    xy: ArrayLike, name: str, n: int | None = None, ids_name: str = ""
-) -> NDArray[np.float64]:
-    """Validate coordinates: shape (n, 2) or (n, 3), finite, in metres."""
-    try:
-        arr = np.asarray(xy, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be an array of shape (n, 2) or (n, 3): {exc}") from exc
-    if arr.ndim == 1 and arr.size == 0:
-        arr = arr.reshape(0, 2)
-    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
-        raise ValueError(f"{name} must have shape (n, 2) or (n, 3); got shape {arr.shape}")
-    if n is not None and arr.shape[0] != n:
-        raise ValueError(
-            f"{name} has {arr.shape[0]} rows but {ids_name} has {n} ids; "
-            "they must have the same length"
-        )
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{name} contains non-finite coordinates (NaN or inf)")
-    return arr
-
-
-def _pairwise_distances(gt: NDArray[np.float64], hyp: NDArray[np.float64]) -> NDArray:
-    """Euclidean distances between validated point sets of equal dimension."""
-    diff = gt[:, None, :] - hyp[None, :, :]
-    return np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
-
-
-def distance_matrix(
-    gt_xy: ArrayLike, hyp_xy: ArrayLike, max_distance_m: float
-) -> NDArray[np.float64]:
-    """Compute gated Euclidean distances between ground-truth objects and hypotheses.
-
-    Parameters
-    ----------
-    gt_xy : array_like, shape (n, 2) or (n, 3)
-        Ground-truth positions in metres; ``n`` may be 0.
-    hyp_xy : array_like, shape (m, 2) or (m, 3)
-        Hypothesis positions in metres; ``m`` may be 0. When both are non-empty they must
-        have the same number of coordinates; all of them are used.
-    max_distance_m : float
-        Gate in metres, finite and > 0. A distance equal to the gate is kept.
-
-    Returns
-    -------
-    numpy.ndarray, shape (n, m)
-        Distances in metres, ``numpy.inf`` where the distance exceeds ``max_distance_m``.
-
-    Raises
-    ------
-    ValueError
-        If an argument has the wrong shape, contains non-finite coordinates, or the gate
-        is not a finite positive number.
-    """
-    gate = _check_max_distance(max_distance_m)
-    gt = _as_points(gt_xy, "gt_xy")
-    hyp = _as_points(hyp_xy, "hyp_xy")
-    if gt.shape[0] == 0 or hyp.shape[0] == 0:
-        return np.empty((gt.shape[0], hyp.shape[0]), dtype=np.float64)
-    if gt.shape[1] != hyp.shape[1]:
-        raise ValueError(
-            "gt_xy and hyp_xy must have the same number of coordinates; "
-            f"got {gt.shape[1]} and {hyp.shape[1]}"
-        )
-    dist = _pairwise_distances(gt, hyp)
-    dist[dist > gate] = np.inf
-    return dist
-
-
-def _max_matching_min_cost(cost: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-    """Pair rows and columns through finite, non-negative entries of ``cost``.
-
-    The result has the largest possible number of pairs and, among such matchings, the
-    smallest total cost. Infinite entries are forbidden pairs.
-    """
-    allowed = np.isfinite(cost)
-    rows = np.flatnonzero(allowed.any(axis=1))
-    cols = np.flatnonzero(allowed.any(axis=0))
-    if rows.size == 0:
-        return _EMPTY_IDS, _EMPTY_IDS
-    sub = cost[np.ix_(rows, cols)]
-    sub_allowed = allowed[np.ix_(rows, cols)]
-    # scipy assigns min(shape) pairs, so forbidden pairs get a finite penalty larger than
-    # the total cost of any set of allowed pairs: one more allowed pair always lowers the
-    # objective, hence cardinality is maximised first and the cost second.
-    size = min(sub.shape)
-    penalty = size * (float(sub[sub_allowed].max()) + 1.0)
-    r, c = linear_sum_assignment(np.where(sub_allowed, sub, penalty))
-    keep = sub_allowed[r, c]
-    return rows[r[keep]], cols[c[keep]]
-
-
 class MotAccumulator:
     """Accumulate per-frame correspondences and compute CLEAR MOT and IDF1 metrics.
 
@@ -311,7 +194,7 @@ class MotAccumulator:
     """
 
     def __init__(self, max_distance_m: float = 0.5) -> None:
-        self._max_distance_m = _check_max_distance(max_distance_m)
+        self._max_distance_m = check_max_distance(max_distance_m)
         # ground-truth id -> hypothesis id of its most recent match (any earlier frame)
         self._last_hyp: dict[int, int] = {}
         self._frames = 0
@@ -358,17 +241,17 @@ class MotAccumulator:
             If ids are not 1-D integers, repeat within the frame, or do not match the
             number of positions; if positions have the wrong shape or are not finite.
         """
-        gt = _as_ids(gt_ids, "gt_ids")
-        hyp = _as_ids(hyp_ids, "hyp_ids")
-        gxy = _as_points(gt_xy, "gt_xy", gt.size, "gt_ids")
-        hxy = _as_points(hyp_xy, "hyp_xy", hyp.size, "hyp_ids")
+        gt = as_ids(gt_ids, "gt_ids")
+        hyp = as_ids(hyp_ids, "hyp_ids")
+        gxy = as_points(gt_xy, "gt_xy", gt.size, "gt_ids")
+        hxy = as_points(hyp_xy, "hyp_xy", hyp.size, "hyp_ids")
         if gt.size and hyp.size:
             if gxy.shape[1] != hxy.shape[1]:
                 raise ValueError(
                     "gt_xy and hyp_xy must have the same number of coordinates; "
                     f"got {gxy.shape[1]} and {hxy.shape[1]}"
                 )
-            dist = _pairwise_distances(gxy, hxy)
+            dist = pairwise_distances(gxy, hxy)
             dist[dist > self._max_distance_m] = np.inf
         else:
             dist = np.empty((gt.size, hyp.size), dtype=np.float64)
@@ -392,9 +275,9 @@ class MotAccumulator:
         ValueError
             If the ids or positions are invalid (see :meth:`update`).
         """
-        gt = _as_ids(gt_ids, "gt_ids")
-        _as_points(gt_xy, "gt_xy", gt.size, "gt_ids")
-        self._add_frame(gt, _EMPTY_IDS, np.empty((gt.size, 0), dtype=np.float64))
+        gt = as_ids(gt_ids, "gt_ids")
+        as_points(gt_xy, "gt_xy", gt.size, "gt_ids")
+        self._add_frame(gt, EMPTY_IDS, np.empty((gt.size, 0), dtype=np.float64))
 
     def _add_frame(
         self, gt: NDArray[np.int64], hyp: NDArray[np.int64], dist: NDArray[np.float64]
@@ -424,7 +307,7 @@ class MotAccumulator:
             free_rows = np.flatnonzero(gt_match < 0)
             free_cols = np.flatnonzero(~hyp_taken)
             if free_rows.size and free_cols.size:
-                rr, cc = _max_matching_min_cost(dist[np.ix_(free_rows, free_cols)])
+                rr, cc = max_matching_min_cost(dist[np.ix_(free_rows, free_cols)])
                 for i, j in zip(free_rows[rr].tolist(), free_cols[cc].tolist(), strict=True):
                     o, h = gt_list[i], hyp_list[j]
                     previous = self._last_hyp.get(o)
@@ -455,11 +338,11 @@ class MotAccumulator:
         MotMetrics
             CLEAR MOT counts and ratios, track-level counts and identity measures.
         """
-        gt_all = np.concatenate(self._gt_ids) if self._gt_ids else _EMPTY_IDS
+        gt_all = np.concatenate(self._gt_ids) if self._gt_ids else EMPTY_IDS
         matched_all = (
             np.concatenate(self._gt_matched) if self._gt_matched else np.zeros(0, dtype=bool)
         )
-        hyp_all = np.concatenate(self._hyp_ids) if self._hyp_ids else _EMPTY_IDS
+        hyp_all = np.concatenate(self._hyp_ids) if self._hyp_ids else EMPTY_IDS
         gt_objects = int(gt_all.size)
         hyp_objects = int(hyp_all.size)
 
@@ -476,7 +359,9 @@ class MotAccumulator:
         partially_tracked = int(gt_uniq.size) - mostly_tracked - mostly_lost
 
         fragmentations = _count_fragmentations(gt_inv, matched_all)
-        idtp = self._identity_true_positives(gt_uniq, gt_frames, hyp_uniq, hyp_frames)
+        pair_gt = np.concatenate(self._pair_gt) if self._pair_gt else EMPTY_IDS
+        pair_hyp = np.concatenate(self._pair_hyp) if self._pair_hyp else EMPTY_IDS
+        idtp = identity_true_positives(gt_uniq, gt_frames, hyp_uniq, hyp_frames, pair_gt, pair_hyp)
 
         matches = self._matches
         errors = self._fn + self._fp + self._switches
@@ -502,42 +387,6 @@ class MotAccumulator:
             partially_tracked=partially_tracked,
             mostly_lost=mostly_lost,
         )
-
-    def _identity_true_positives(
-        self,
-        gt_uniq: NDArray[np.int64],
-        gt_frames: NDArray[np.int64],
-        hyp_uniq: NDArray[np.int64],
-        hyp_frames: NDArray[np.int64],
-    ) -> int:
-        """Return IDTP of the optimal one-to-one trajectory assignment (Ristani et al.)."""
-        if not self._pair_gt:
-            return 0
-        pair_gt = np.concatenate(self._pair_gt)
-        if pair_gt.size == 0:
-            return 0
-        pair_hyp = np.concatenate(self._pair_hyp)
-        # Only trajectories with at least one gated frame can contribute identity true
-        # positives; all others go to their dummy partner in any optimal assignment, so
-        # leaving them out does not change IDTP and keeps the matrix small.
-        g_act, g_idx = np.unique(np.searchsorted(gt_uniq, pair_gt), return_inverse=True)
-        h_act, h_idx = np.unique(np.searchsorted(hyp_uniq, pair_hyp), return_inverse=True)
-        n_g, n_h = g_act.size, h_act.size
-        tp = np.bincount(g_idx * n_h + h_idx, minlength=n_g * n_h).reshape(n_g, n_h)
-        g_len = gt_frames[g_act].astype(np.float64)
-        h_len = hyp_frames[h_act].astype(np.float64)
-        # (G + H) square cost: real gt rows x real hyp columns cost IDFN + IDFP of the pair;
-        # a gt row may instead take its own dummy column (all its frames are IDFN), a hyp
-        # column its own dummy row (all its frames are IDFP); dummy x dummy costs nothing.
-        size = n_g + n_h
-        cost = np.full((size, size), np.inf)
-        cost[:n_g, :n_h] = g_len[:, None] + h_len[None, :] - 2.0 * tp
-        cost[np.arange(n_g), n_h + np.arange(n_g)] = g_len
-        cost[n_g + np.arange(n_h), np.arange(n_h)] = h_len
-        cost[n_g:, n_h:] = 0.0
-        rows, cols = linear_sum_assignment(cost)
-        real = (rows < n_g) & (cols < n_h)
-        return int(tp[rows[real], cols[real]].sum())
 
 
 def _count_fragmentations(gt_inv: NDArray[np.intp], matched: NDArray[np.bool_]) -> int:

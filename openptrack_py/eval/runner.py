@@ -279,45 +279,11 @@ def evaluate(
     """
     if scenario.duration_s is None:
         raise ValueError("evaluate: the scenario needs a finite duration_s")
-    detector = None
-    if sensor_model == "rgbd":
-        from openptrack_py.eval.detector import detector_config_for
-
-        detector = detector_config_for(scenario.name)
-    sim = Simulator(
-        scenario,
-        ground_truth_rate_hz=ground_truth_rate_hz,
-        sensor_model=sensor_model,
-        detector_config=detector,
-    )
+    sim = _simulator(scenario, ground_truth_rate_hz, sensor_model)
     acc = MotAccumulator(max_distance_m)
-    batches = 0
     start = time.perf_counter()
-    for event in sim.events():
-        if isinstance(event, SensorFrame):
-            batches += 1
-            feed.on_sensor_frame(event)
-            continue
-        feed.on_truth_frame(event)
-        if event.time - sim.start_time < warmup_s:
-            continue
-        people = event.frame.people
-        covered = [p for p in people if p.covered]
-        gt_ids = [p.id for p in covered]
-        gt_xy = np.array([(p.x, p.y) for p in covered]).reshape(-1, 2)
-        hyp = feed.hypotheses_at(event.time)
-        if on_frame is not None:
-            on_frame(event.time, event.frame, hyp)
-        if hyp is None:
-            acc.update_missing_frame(gt_ids, gt_xy)
-            continue
-        uncovered = np.array([(p.x, p.y) for p in people if not p.covered]).reshape(-1, 2)
-        hyp = _drop_dont_care(hyp, uncovered, max_distance_m)
-        acc.update(gt_ids, gt_xy, hyp.ids, hyp.xy)
+    batches = _play(sim, feed, acc, max_distance_m, warmup_s, on_frame)
     wall = time.perf_counter() - start
-    step_ms = None
-    if isinstance(feed, TrackerFeed) and feed.steps:
-        step_ms = 1e3 * feed.step_seconds / feed.steps
     return EvalResult(
         metrics=acc.compute(),
         scenario=scenario.name,
@@ -326,8 +292,81 @@ def evaluate(
         sensors=len(scenario.sensors),
         batches=batches,
         wall_s=wall,
-        tracker_ms_per_batch=step_ms,
+        tracker_ms_per_batch=_tracker_ms_per_batch(feed),
     )
+
+
+def _simulator(scenario: Scenario, ground_truth_rate_hz: float, sensor_model: str) -> Simulator:
+    """The simulator for ``scenario`` (with the scenario's detector tuning for ``rgbd``)."""
+    detector = None
+    if sensor_model == "rgbd":
+        from openptrack_py.eval.detector import detector_config_for
+
+        detector = detector_config_for(scenario.name)
+    return Simulator(
+        scenario,
+        ground_truth_rate_hz=ground_truth_rate_hz,
+        sensor_model=sensor_model,
+        detector_config=detector,
+    )
+
+
+def _play(
+    sim: Simulator,
+    feed: HypothesisFeed,
+    acc: MotAccumulator,
+    max_distance_m: float,
+    warmup_s: float,
+    on_frame: Callable[[float, GroundTruthFrame, Hypotheses | None], None] | None,
+) -> int:
+    """Run the simulation into ``feed``, scoring ground truth after the warm-up.
+
+    Returns
+    -------
+    int
+        The number of sensor batches the simulation produced.
+    """
+    batches = 0
+    for event in sim.events():
+        if isinstance(event, SensorFrame):
+            batches += 1
+            feed.on_sensor_frame(event)
+            continue
+        feed.on_truth_frame(event)
+        if event.time - sim.start_time < warmup_s:
+            continue
+        _score_frame(event, feed, acc, max_distance_m, on_frame)
+    return batches
+
+
+def _score_frame(
+    event: TruthFrame,
+    feed: HypothesisFeed,
+    acc: MotAccumulator,
+    max_distance_m: float,
+    on_frame: Callable[[float, GroundTruthFrame, Hypotheses | None], None] | None,
+) -> None:
+    """Score the feed's hypotheses against the covered people of one ground-truth frame."""
+    people = event.frame.people
+    covered = [p for p in people if p.covered]
+    gt_ids = [p.id for p in covered]
+    gt_xy = np.array([(p.x, p.y) for p in covered]).reshape(-1, 2)
+    hyp = feed.hypotheses_at(event.time)
+    if on_frame is not None:
+        on_frame(event.time, event.frame, hyp)
+    if hyp is None:
+        acc.update_missing_frame(gt_ids, gt_xy)
+        return
+    uncovered = np.array([(p.x, p.y) for p in people if not p.covered]).reshape(-1, 2)
+    hyp = _drop_dont_care(hyp, uncovered, max_distance_m)
+    acc.update(gt_ids, gt_xy, hyp.ids, hyp.xy)
+
+
+def _tracker_ms_per_batch(feed: HypothesisFeed) -> float | None:
+    """Mean tracker step time in ms, when the feed ran a tracker that stepped."""
+    if isinstance(feed, TrackerFeed) and feed.steps:
+        return 1e3 * feed.step_seconds / feed.steps
+    return None
 
 
 def _cell(value: object) -> str:
