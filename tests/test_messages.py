@@ -32,7 +32,8 @@ from openptrack_py.messages import (
     Track,
     TrackBatch,
     Visibility,
-    codec,
+    control_codec,
+    data_codec,
     decode_config_ack,
     decode_config_update,
     decode_detection_batch,
@@ -710,7 +711,7 @@ def test_oversized_payload_is_rejected_before_parsing(monkeypatch: pytest.Monkey
     def must_not_parse(_payload: Any) -> Any:
         raise AssertionError("orjson.loads called on an oversized payload")
 
-    monkeypatch.setattr(codec.orjson, "loads", must_not_parse)
+    monkeypatch.setattr(orjson, "loads", must_not_parse)
     for decode in DECODERS:
         with pytest.raises(WireFormatError, match=r"exceeds the 1048576-byte limit"):
             decode(_TEN_MB_ARRAY)
@@ -1025,10 +1026,10 @@ def test_fuzz_one_field_of_a_valid_message(target: tuple, value: Any, delete: bo
     st.dictionaries(
         st.sampled_from(
             sorted(
-                codec._DETECTION_BATCH_KEYS
-                | codec._TRACK_BATCH_KEYS
-                | codec._STATS_KEYS
-                | codec._GROUND_TRUTH_KEYS
+                data_codec._DETECTION_BATCH_KEYS
+                | data_codec._TRACK_BATCH_KEYS
+                | control_codec._STATS_KEYS
+                | data_codec._GROUND_TRUTH_KEYS
                 | {"junk"}
             )
         ),

@@ -15,10 +15,6 @@ This module is the one place to import them from. The code lives by role:
 
 from __future__ import annotations
 
-# orjson and the private key sets are reached through this module by the tests.
-import orjson as orjson
-
-from openptrack_py.messages.control_codec import _STATS_KEYS as _STATS_KEYS
 from openptrack_py.messages.control_codec import (
     decode_config_ack,
     decode_config_update,
@@ -29,9 +25,6 @@ from openptrack_py.messages.control_codec import (
     encode_heartbeat,
     encode_node_stats,
 )
-from openptrack_py.messages.data_codec import _DETECTION_BATCH_KEYS as _DETECTION_BATCH_KEYS
-from openptrack_py.messages.data_codec import _GROUND_TRUTH_KEYS as _GROUND_TRUTH_KEYS
-from openptrack_py.messages.data_codec import _TRACK_BATCH_KEYS as _TRACK_BATCH_KEYS
 from openptrack_py.messages.data_codec import (
     decode_detection_batch,
     decode_ground_truth,
