@@ -30,12 +30,12 @@ from pydantic import (
 )
 
 from openptrack_py.errors import ConfigError
+from openptrack_py.sensor_types import SENSOR_TYPES, SensorTypeName
 
 NAME_PATTERN = r"^[A-Za-z0-9_.\-]+$"
 """Identifiers (site, sensor ids, node names) become Zenoh key chunks: no '/', '*', '$'."""
 
 Name = Annotated[str, Field(pattern=NAME_PATTERN, min_length=1, max_length=64)]
-SensorType = Literal["kinect1", "kinect2", "realsense", "sr4500"]
 ScenarioName = Literal["crowd", "distance", "occlusions", "classroom", "installation", "stress"]
 ENDPOINT_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream")
 M = TypeVar("M", bound=BaseModel)
@@ -161,8 +161,9 @@ class PoseError(StrictModel):
 class SensorConfig(StrictModel):
     """One depth sensor of the network.
 
-    Simulation parameters left at ``None`` take the sensor type's defaults
-    (``openptrack_py.sim.sensors.SENSOR_TYPES``).
+    Parameters left at ``None`` take the sensor type's defaults: the rate from
+    ``openptrack_py.sensor_types.SENSOR_TYPES``, the simulated miss and clutter figures
+    from ``openptrack_py.sim.sensors.SENSOR_NOISE``.
 
     Parameters
     ----------
@@ -199,7 +200,7 @@ class SensorConfig(StrictModel):
     """
 
     id: Name
-    type: SensorType = "kinect2"
+    type: SensorTypeName = "kinect2"
     host: str = "localhost"
     source: Literal["sim", "camera", "recording"] = "sim"
     rate_hz: float | None = Field(None, gt=0.0, le=120.0)
@@ -260,22 +261,6 @@ class SimConfig(StrictModel):
     use_scenario_sensors: bool = False
     start_time: float | None = Field(None, ge=0.0)
 
-
-MAX_DISTANCES: dict[str, float] = {
-    "kinect1": 5.0,
-    "kinect2": 10.0,
-    "realsense": 7.0,
-    "sr4500": 8.0,
-}
-"""Default depth limit per sensor type, metres: OpenPTrack's values (Kinect v1 5 m,
-Kinect v2 10 m, SR4500 8 m) and, for RealSense, where its stereo noise (about 6 cm at
-7 m) still leaves a head distinguishable from shoulders."""
-
-MIN_POINTS: dict[str, int] = {"kinect1": 12, "kinect2": 20, "realsense": 20, "sr4500": 8}
-"""Default fewest points of a detection per sensor type (scaled with resolution)."""
-
-SAMPLING_FACTORS: dict[str, int] = {"kinect1": 1, "kinect2": 2, "realsense": 2, "sr4500": 1}
-"""Default pixel sampling per sensor type (about 50-80 thousand points per frame)."""
 
 HEIGHT_PRESETS: dict[str, tuple[float, float, float]] = {
     "adult": (1.0, 2.3, 1.3),
@@ -382,16 +367,16 @@ class DetectorConfig(StrictModel):
         A blob's highest point must be at least this high (preset if omitted).
     sampling_factor : int, optional
         Use every n-th pixel in each image direction; per sensor type if omitted
-        (:data:`SAMPLING_FACTORS`: 1 for the low-resolution Kinect v1 and SR4500, 2 for
-        Kinect v2 and RealSense).
+        (``detector_sampling_factor`` of :data:`~openptrack_py.sensor_types.SENSOR_TYPES`:
+        1 for the low-resolution Kinect v1 and SR4500, 2 for Kinect v2 and RealSense).
     max_distance_m : float, optional
         Points farther than this along the optical axis are ignored, and blobs reaching
-        it are dropped; the sensor type's depth limit if omitted (:data:`MAX_DISTANCES`).
+        it are dropped; the sensor type's ``detector_max_distance_m`` if omitted.
     voxel_size_m : float
         Cell of the floor grid the band is projected onto (and of down-sampling).
     min_points : int, optional
         Fewest points of a detection (after down-sampling); per sensor type if omitted
-        (:data:`MIN_POINTS`: fewer for low-resolution sensors).
+        (``detector_min_points``: fewer for low-resolution sensors).
     heads_minimum_distance_m : float
         Heads closer than this belong to one person; farther, a blob is split.
     min_size_m, max_size_m : float
@@ -454,13 +439,15 @@ class DetectorConfig(StrictModel):
         """Depth limit for a sensor type (``max_distance_m`` when set; 10 m if unknown)."""
         if self.max_distance_m is not None:
             return self.max_distance_m
-        return MAX_DISTANCES.get(sensor_type or "", 10.0)
+        kind = SENSOR_TYPES.get(sensor_type or "")
+        return 10.0 if kind is None else kind.detector_max_distance_m
 
     def min_points_for(self, sensor_type: str | None) -> int:
         """Fewest points of a detection for a sensor type (``min_points`` when set)."""
         if self.min_points is not None:
             return self.min_points
-        return MIN_POINTS.get(sensor_type or "", 20)
+        kind = SENSOR_TYPES.get(sensor_type or "")
+        return 20 if kind is None else kind.detector_min_points
 
     def sampling_for(self, sensor_type: str | None, width: int) -> int:
         """Pixel sampling step for a sensor type and image width.
@@ -470,8 +457,9 @@ class DetectorConfig(StrictModel):
         """
         if self.sampling_factor is not None:
             return self.sampling_factor
-        if sensor_type in SAMPLING_FACTORS:
-            return SAMPLING_FACTORS[sensor_type]
+        kind = SENSOR_TYPES.get(sensor_type or "")
+        if kind is not None:
+            return kind.detector_sampling_factor
         return 1 if width <= 320 else 2
 
     @property
