@@ -111,7 +111,7 @@ class SensorSpec:
     id : str
         Sensor id.
     type : SensorType
-        Nominal facts of the sensor's type (its noise model is :attr:`noise`).
+        Nominal facts of the sensor's type.
     pose : Pose
         True pose in the world.
     rate_hz : float
@@ -121,13 +121,16 @@ class SensorSpec:
     latency_s, latency_jitter_s : float
         Mean capture-to-publication delay and its standard deviation.
     miss_probability, clutter_per_frame : float
-        Override the type's noise model.
+        This sensor's figures, used instead of those of its noise model
+        (:meth:`from_config` takes them from the type's when the config leaves them out).
     frame_drop_probability : float
         Probability that a whole frame is never published.
     pose_error : PoseError
         Believed pose minus true pose.
     phase_s : float
         Time of the first frame after the scenario start.
+    noise_override : SensorNoise, optional
+        A noise model replacing the type's (see :attr:`noise`).
     """
 
     id: str
@@ -142,10 +145,13 @@ class SensorSpec:
     frame_drop_probability: float = 0.0
     pose_error: PoseError = field(default_factory=PoseError)
     phase_s: float = 0.0
+    noise_override: SensorNoise | None = None
 
     @property
     def noise(self) -> SensorNoise:
-        """The simulated detector's noise model of this sensor's type."""
+        """The simulated detector's noise model: ``noise_override`` or the type's."""
+        if self.noise_override is not None:
+            return self.noise_override
         return SENSOR_NOISE[self.type.name]
 
     @classmethod
