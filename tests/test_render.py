@@ -13,8 +13,9 @@ import pytest
 from openptrack_py.config import Pose, SensorConfig
 from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.geometry import world_from_optical
+from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.sim.render import DEPTH_NOISE, WALL_HEIGHT_M, DepthRenderer, RenderedFrame
-from openptrack_py.sim.sensors import SENSOR_TYPES, SensorSpec
+from openptrack_py.sim.sensors import SensorSpec
 from openptrack_py.sim.world import Room
 from tests.conftest import people_snapshot
 

@@ -25,10 +25,11 @@ from openptrack_py.messages import (
     encode_ground_truth,
 )
 from openptrack_py.runtime.node import Node
+from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.sim import (
     DEFAULT_START_TIME,
     SCENARIO_NAMES,
-    SENSOR_TYPES,
+    SENSOR_NOISE,
     Obstacle,
     PersonSpec,
     Room,
@@ -247,8 +248,8 @@ def test_specs_follow_the_sensor_configs(stream) -> None:
     assert specs["custom"].rate_hz == 15.0
     assert specs["slow"].type.name == "sr4500"
     # type defaults filled in when the config leaves them out
-    assert specs["custom"].miss_probability == SENSOR_TYPES["kinect1"].miss_probability
-    assert specs["custom"].clutter_per_frame == SENSOR_TYPES["kinect1"].clutter_per_frame
+    assert specs["custom"].miss_probability == SENSOR_NOISE["kinect1"].miss_probability
+    assert specs["custom"].clutter_per_frame == SENSOR_NOISE["kinect1"].clutter_per_frame
     for s in specs.values():
         assert 0.0 <= s.phase_s < 1.0 / s.rate_hz
 
@@ -581,7 +582,7 @@ def test_sensor_spec_needs_a_pose() -> None:
     spec = SensorSpec.from_config(cfg, phase_s=0.01)
     assert spec.rate_hz == SENSOR_TYPES["sr4500"].rate_hz
     assert spec.miss_probability == 0.5
-    assert spec.clutter_per_frame == SENSOR_TYPES["sr4500"].clutter_per_frame
+    assert spec.clutter_per_frame == SENSOR_NOISE["sr4500"].clutter_per_frame
     assert spec.phase_s == 0.01
 
 
@@ -686,7 +687,7 @@ def noise_by_distance() -> dict[str, list[float]]:
 
 def test_kinect1_noise_grows_quadratically_with_distance(noise_by_distance) -> None:
     s2, s4, s6 = noise_by_distance["kinect1"]
-    model = SENSOR_TYPES["kinect1"]
+    model = SENSOR_NOISE["kinect1"]
     assert s2 == pytest.approx(float(model.depth_sigma_at(2.0)), rel=0.12)
     assert s6 == pytest.approx(float(model.depth_sigma_at(6.0)), rel=0.12)
     assert s6 / s2 > 3.0

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from openptrack_py.errors import ConfigError
+from openptrack_py.sensor_types import SENSOR_TYPES
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,16 +59,13 @@ class Intrinsics:
         """Nominal intrinsics of a sensor type: kinect1, kinect2, realsense or sr4500.
 
         Image size and fields of view are those of
-        :data:`openptrack_py.sim.sensors.SENSOR_TYPES`.
+        :data:`openptrack_py.sensor_types.SENSOR_TYPES`.
 
         Raises
         ------
         ConfigError
             For an unknown type.
         """
-        # imported here: detection alone does not load the simulator
-        from openptrack_py.sim.sensors import SENSOR_TYPES
-
         if sensor_type not in SENSOR_TYPES:
             raise ConfigError(
                 f"sensor type: unknown {sensor_type!r} (allowed: {', '.join(SENSOR_TYPES)})"

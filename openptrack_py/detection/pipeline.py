@@ -42,11 +42,11 @@ from openptrack_py.detection.frame import Frame, Intrinsics
 from openptrack_py.detection.ground import GroundPlane, GroundTracker
 from openptrack_py.geometry import apply, invert
 from openptrack_py.messages.detection import Detection, DetectionBatch
+from openptrack_py.sensor_types import SENSOR_TYPES
 
 STAGES = ("cloud", "ground", "band", "background", "downsample", "cluster", "describe", "hog")
 """Names of the timed stages, in order."""
 
-_TOF_TYPES = ("kinect2", "sr4500")
 RANGE_CUT_M = 0.2
 """Blobs with points this close to ``max_distance_m`` are cut by the depth limit: dropped."""
 
@@ -172,7 +172,8 @@ class PeopleDetector:
         4x4 sensor pose (optical frame to world). Without it, positions are reported in
         a floor-aligned frame under the sensor.
     sensor_type : str, optional
-        ``kinect1``, ``kinect2``, ``realsense`` or ``sr4500``: picks the HOG image.
+        ``kinect1``, ``kinect2``, ``realsense`` or ``sr4500``: picks the type's default
+        depth limit, sampling and fewest points, and the HOG image.
     frame_id : str
         ``frame_id`` of results when there is no pose.
     rate_hz : float
@@ -401,8 +402,9 @@ class PeopleDetector:
         from openptrack_py.detection.hog import equalised_ir, luminance, margin_to_confidence
 
         hog_cfg = self.config.hog
+        kind = SENSOR_TYPES.get(self.sensor_type or "")
         use_ir = hog_cfg.image == "ir" or (
-            hog_cfg.image == "auto" and self.sensor_type in _TOF_TYPES
+            hog_cfg.image == "auto" and kind is not None and kind.time_of_flight
         )
         if use_ir and frame.intensity is not None:
             gray, mode = equalised_ir(frame.intensity), "ir"

@@ -23,8 +23,7 @@ from openptrack_py.errors import ConfigError, SourceError
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.messages.codec import encode_detection_batch
 from openptrack_py.runtime.node import Inbox, Node
-
-_CAMERA_DEFAULTS = {"realsense": "realsense"}
+from openptrack_py.sensor_types import SENSOR_TYPES
 
 
 def source_for_sensor(
@@ -56,7 +55,7 @@ def source_for_sensor(
                 "(give an --input, or run it through the detector node)"
             )
         return sim_source(cfg, sensor)
-    spec = spec or sensor.input or _CAMERA_DEFAULTS.get(sensor.type)
+    spec = spec or sensor.input or SENSOR_TYPES[sensor.type].live_input
     if spec is None:
         raise ConfigError(
             f"sensors.{sensor.id}.input: a {sensor.source} sensor needs an input "

@@ -25,9 +25,9 @@ from scipy.optimize import linear_sum_assignment
 from openptrack_py.config import DetectorConfig, SensorConfig
 from openptrack_py.detection.pipeline import RANGE_CUT_M, PeopleDetector
 from openptrack_py.geometry import apply, world_from_optical
+from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.scenarios import Scenario, build_scenario, scenario_world
-from openptrack_py.sim.sensors import SENSOR_TYPES
 
 
 @dataclass

@@ -33,6 +33,7 @@ from openptrack_py.errors import ConfigError
 from openptrack_py.messages.codec import track_dict
 from openptrack_py.messages.track import TrackBatch
 from openptrack_py.runtime.counters import Counters
+from openptrack_py.sensor_types import SENSOR_TYPES
 
 log = logging.getLogger(__name__)
 # one line per HTTP request and connection is too much for a node's log
@@ -49,8 +50,6 @@ _CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; 
 
 def scene(network: NetworkConfig, cfg: WebConfig) -> dict[str, Any]:
     """What the view draws besides tracks: room outline and sensors."""
-    from openptrack_py.sim.sensors import SENSOR_TYPES
-
     sensors = []
     for s in network.sensors:
         if s.pose is None:

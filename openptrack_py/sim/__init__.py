@@ -6,22 +6,22 @@ from openptrack_py.sim.scenarios import (
     build_scenario,
     describe_scenarios,
 )
-from openptrack_py.sim.sensors import SENSOR_TYPES, SensorModel, SensorSpec, SensorType
+from openptrack_py.sim.sensors import SENSOR_NOISE, SensorModel, SensorNoise, SensorSpec
 from openptrack_py.sim.simulator import DEFAULT_START_TIME, SensorFrame, Simulator, TruthFrame
 from openptrack_py.sim.world import Obstacle, PersonSpec, Room, World
 
 __all__ = [
     "DEFAULT_START_TIME",
     "SCENARIO_NAMES",
-    "SENSOR_TYPES",
+    "SENSOR_NOISE",
     "Obstacle",
     "PersonSpec",
     "Room",
     "Scenario",
     "SensorFrame",
     "SensorModel",
+    "SensorNoise",
     "SensorSpec",
-    "SensorType",
     "Simulator",
     "TruthFrame",
     "World",

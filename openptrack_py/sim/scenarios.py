@@ -28,7 +28,8 @@ import numpy as np
 
 from openptrack_py.config import Pose, SensorConfig
 from openptrack_py.errors import ConfigError
-from openptrack_py.sim.sensors import SENSOR_TYPES, SensorModel, SensorSpec
+from openptrack_py.sensor_types import SENSOR_TYPES
+from openptrack_py.sim.sensors import SensorModel, SensorSpec
 from openptrack_py.sim.world import Director, Obstacle, Room, World, random_person
 
 

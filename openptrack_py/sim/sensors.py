@@ -20,6 +20,10 @@ would find them and where it would put them:
 
 Confidence is on ``[0, 1]``; true people score roughly 0.6-0.95 depending on how much of
 them is visible, clutter roughly 0.1-0.5.
+
+Field of view, ranges and rate are the sensor type's facts
+(:mod:`openptrack_py.sensor_types`); the noise, miss, clutter and split figures per type
+are the simulator's own model (:data:`SENSOR_NOISE`).
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from openptrack_py.config import Pose, PoseError, SensorConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.geometry import invert, world_from_optical
 from openptrack_py.messages.detection import Detection
+from openptrack_py.sensor_types import SENSOR_TYPES, SensorType
 from openptrack_py.sim.world import Room, Snapshot
 
 APPEARANCE_BINS = 16
@@ -40,23 +45,14 @@ APPEARANCE_BINS = 16
 
 
 @dataclass(frozen=True)
-class SensorType:
-    """Nominal properties of one kind of depth sensor.
+class SensorNoise:
+    """How the simulated detector of one sensor type errs.
+
+    The type's geometry (image, field of view, ranges, rate) is in
+    :data:`openptrack_py.sensor_types.SENSOR_TYPES`.
 
     Parameters
     ----------
-    name : str
-        Type name as used in network files.
-    width, height : int
-        Depth image size, pixels.
-    hfov_deg, vfov_deg : float
-        Horizontal and vertical field of view, degrees.
-    min_range_m, max_range_m : float
-        Depth range, metres.
-    reliable_range_m : float
-        Beyond this, misses become more likely, reaching certainty at ``max_range_m``.
-    rate_hz : float
-        Nominal frame rate.
     depth_sigma : tuple of float
         ``(s0, s1, s2)``: centroid noise along the ray ``s0 + s1*d + s2*d**2`` metres.
     lateral_sigma_m : float
@@ -71,15 +67,6 @@ class SensorType:
         Probability that a detected person also yields a second, spurious blob.
     """
 
-    name: str
-    width: int
-    height: int
-    hfov_deg: float
-    vfov_deg: float
-    min_range_m: float
-    max_range_m: float
-    reliable_range_m: float
-    rate_hz: float
     depth_sigma: tuple[float, float, float]
     lateral_sigma_m: float
     height_sigma_m: float
@@ -93,40 +80,26 @@ class SensorType:
         d = np.asarray(distance_m, dtype=float)
         return s0 + s1 * d + s2 * d * d
 
-    @property
-    def intrinsics(self) -> tuple[float, float, float, float]:
-        """Pinhole ``(fx, fy, cx, cy)`` of the depth image."""
-        fx = (self.width / 2) / math.tan(math.radians(self.hfov_deg) / 2)
-        fy = (self.height / 2) / math.tan(math.radians(self.vfov_deg) / 2)
-        return fx, fy, (self.width - 1) / 2, (self.height - 1) / 2
 
-
-SENSOR_TYPES: dict[str, SensorType] = {
-    "kinect1": SensorType(
-        name="kinect1", width=320, height=240, hfov_deg=57.0, vfov_deg=43.0,
-        min_range_m=0.8, max_range_m=8.0, reliable_range_m=4.5, rate_hz=30.0,
+SENSOR_NOISE: dict[str, SensorNoise] = {
+    "kinect1": SensorNoise(
         depth_sigma=(0.02, 0.0, 0.0035), lateral_sigma_m=0.03, height_sigma_m=0.04,
         miss_probability=0.05, clutter_per_frame=0.02, split_probability=0.004,
     ),
-    "kinect2": SensorType(
-        name="kinect2", width=512, height=424, hfov_deg=70.6, vfov_deg=60.0,
-        min_range_m=0.5, max_range_m=10.0, reliable_range_m=8.0, rate_hz=30.0,
+    "kinect2": SensorNoise(
         depth_sigma=(0.03, 0.002, 0.0), lateral_sigma_m=0.025, height_sigma_m=0.03,
         miss_probability=0.02, clutter_per_frame=0.03, split_probability=0.003,
     ),
-    "realsense": SensorType(
-        name="realsense", width=640, height=480, hfov_deg=87.0, vfov_deg=58.0,
-        min_range_m=0.3, max_range_m=10.0, reliable_range_m=6.0, rate_hz=30.0,
+    "realsense": SensorNoise(
         depth_sigma=(0.03, 0.003, 0.0), lateral_sigma_m=0.025, height_sigma_m=0.03,
         miss_probability=0.03, clutter_per_frame=0.04, split_probability=0.004,
     ),
-    "sr4500": SensorType(
-        name="sr4500", width=176, height=144, hfov_deg=69.0, vfov_deg=55.0,
-        min_range_m=0.4, max_range_m=9.0, reliable_range_m=7.0, rate_hz=13.0,
+    "sr4500": SensorNoise(
         depth_sigma=(0.03, 0.002, 0.0), lateral_sigma_m=0.04, height_sigma_m=0.04,
         miss_probability=0.05, clutter_per_frame=0.03, split_probability=0.004,
     ),
 }  # fmt: skip
+"""The simulated detector's noise per sensor type (the types of ``SENSOR_TYPES``)."""
 
 
 @dataclass(frozen=True)
@@ -138,7 +111,7 @@ class SensorSpec:
     id : str
         Sensor id.
     type : SensorType
-        Nominal properties.
+        Nominal facts of the sensor's type.
     pose : Pose
         True pose in the world.
     rate_hz : float
@@ -148,13 +121,16 @@ class SensorSpec:
     latency_s, latency_jitter_s : float
         Mean capture-to-publication delay and its standard deviation.
     miss_probability, clutter_per_frame : float
-        Override the type's values.
+        This sensor's figures, used instead of those of its noise model
+        (:meth:`from_config` takes them from the type's when the config leaves them out).
     frame_drop_probability : float
         Probability that a whole frame is never published.
     pose_error : PoseError
         Believed pose minus true pose.
     phase_s : float
         Time of the first frame after the scenario start.
+    noise_override : SensorNoise, optional
+        A noise model replacing the type's (see :attr:`noise`).
     """
 
     id: str
@@ -169,6 +145,14 @@ class SensorSpec:
     frame_drop_probability: float = 0.0
     pose_error: PoseError = field(default_factory=PoseError)
     phase_s: float = 0.0
+    noise_override: SensorNoise | None = None
+
+    @property
+    def noise(self) -> SensorNoise:
+        """The simulated detector's noise model: ``noise_override`` or the type's."""
+        if self.noise_override is not None:
+            return self.noise_override
+        return SENSOR_NOISE[self.type.name]
 
     @classmethod
     def from_config(cls, cfg: SensorConfig, phase_s: float = 0.0) -> SensorSpec:
@@ -182,6 +166,7 @@ class SensorSpec:
         if cfg.pose is None:
             raise ConfigError(f"sensors.{cfg.id}.pose: a simulated sensor needs a pose")
         kind = SENSOR_TYPES[cfg.type]
+        noise = SENSOR_NOISE[cfg.type]
         return cls(
             id=cfg.id,
             type=kind,
@@ -191,10 +176,10 @@ class SensorSpec:
             latency_s=cfg.latency_s,
             latency_jitter_s=cfg.latency_jitter_s,
             miss_probability=(
-                kind.miss_probability if cfg.miss_probability is None else cfg.miss_probability
+                noise.miss_probability if cfg.miss_probability is None else cfg.miss_probability
             ),
             clutter_per_frame=(
-                kind.clutter_per_frame if cfg.clutter_per_frame is None else cfg.clutter_per_frame
+                noise.clutter_per_frame if cfg.clutter_per_frame is None else cfg.clutter_per_frame
             ),
             frame_drop_probability=cfg.frame_drop_probability,
             pose_error=cfg.pose_error,
@@ -430,6 +415,7 @@ class SensorModel:
         """Simulate one frame of the detector on the world state ``snap``."""
         rng = self.rng
         kind = self.spec.type
+        noise = self.spec.noise
         positions: list[np.ndarray] = []
         heights: list[float] = []
         confidences: list[float] = []
@@ -450,15 +436,15 @@ class SensorModel:
                 ray = snap.pos[detected] - self.origin[:2]
                 ray /= np.maximum(np.linalg.norm(ray, axis=1, keepdims=True), 1e-9)
                 side = np.column_stack([-ray[:, 1], ray[:, 0]])
-                sigma = kind.depth_sigma_at(distance[detected])
+                sigma = noise.depth_sigma_at(distance[detected])
                 along = rng.normal(0.0, 1.0, len(detected)) * sigma
-                across = rng.normal(0.0, kind.lateral_sigma_m, len(detected))
+                across = rng.normal(0.0, noise.lateral_sigma_m, len(detected))
                 xy = snap.pos[detected] + along[:, None] * ray + across[:, None] * side
                 frac = fraction[detected]
                 # with the legs hidden the visible centroid rides higher
                 z = snap.height[detected] * (0.55 + 0.15 * (1.0 - frac))
                 z = z + rng.normal(0.0, 0.03, len(detected))
-                h = snap.height[detected] + rng.normal(0.0, kind.height_sigma_m, len(detected))
+                h = snap.height[detected] + rng.normal(0.0, noise.height_sigma_m, len(detected))
                 far = np.maximum(distance[detected] - kind.reliable_range_m, 0.0)
                 conf = 0.55 + 0.35 * frac - 0.04 * far + rng.normal(0.0, 0.06, len(detected))
                 for j, row in enumerate(detected):
@@ -513,7 +499,7 @@ class SensorModel:
         rows: list[int],
     ) -> None:
         """Rarely, a person also yields a spurious second blob beside them."""
-        p = self.spec.type.split_probability
+        p = self.spec.noise.split_probability
         for i in range(len(rows)):
             if self.rng.random() >= p:
                 continue

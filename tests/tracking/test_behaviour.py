@@ -50,14 +50,16 @@ def _scene(
     duration_s: float,
     delays: Sequence[float] | None = None,
     pause_s: float = 60.0,
-    sensor_type: dict[str, float] | None = None,
+    noise: dict[str, float] | None = None,
 ) -> Scenario:
     """A scenario of people walking fixed routes (``pause_s`` at each waypoint)."""
     specs = []
     for i, cfg in enumerate(sensors):
         spec = SensorSpec.from_config(cfg, phase_s=0.0071 * i)
-        if sensor_type:
-            spec = dataclasses.replace(spec, type=dataclasses.replace(spec.type, **sensor_type))
+        if noise:
+            spec = dataclasses.replace(
+                spec, noise_override=dataclasses.replace(spec.noise, **noise)
+            )
         specs.append(spec)
     starts = list(delays) if delays is not None else [0.5] * len(routes)
 
@@ -212,7 +214,7 @@ def _pillar_run(seed: int, quiet: bool) -> tuple[_Run, float, float]:
     sensors = [_sensor("k2_a", 0.2, 3.8, 2.2, 0.0, 12.0, **(QUIET if quiet else {}))]
     scene = _scene(
         PILLAR_ROOM, sensors, [[(6.0, 0.8), (6.0, 7.2)]], seed, 7.0,
-        sensor_type=NO_SPLITS if quiet else None,
+        noise=NO_SPLITS if quiet else None,
     )  # fmt: skip
     run = _simulate(scene)
     times = np.array([t for t, _ in run.seen[1]])
@@ -238,7 +240,7 @@ def test_person_whose_detections_vanish_for_2s_keeps_their_id(seed: int) -> None
         _sensor("k2_b", 9.8, 0.2, 2.6, 135.0, 22.0, **QUIET),
     ]
     routes = [[(2.0, 3.0), (8.0, 7.0)], [(8.0, 3.0), (3.0, 8.0)]]
-    scene = _scene(CROSS_ROOM, sensors, routes, seed, 6.5, sensor_type=NO_SPLITS)
+    scene = _scene(CROSS_ROOM, sensors, routes, seed, 6.5, noise=NO_SPLITS)
 
     def keep(frame: SensorFrame, i: int) -> bool:
         t = frame.capture_time - DEFAULT_START_TIME
@@ -313,15 +315,15 @@ DUP_CASES = {
 @pytest.mark.parametrize("case", list(DUP_CASES), ids=list(DUP_CASES))
 def test_duplicate_detections_never_make_a_second_track(case: str) -> None:
     """One person seen by 2-3 overlapping sensors, clutter off (with clutter: next test)."""
-    count, error, sensor_type, seed = DUP_CASES[case]
+    count, error, noise, seed = DUP_CASES[case]
     scene = _scene(
         DUP_ROOM, _dup_sensors(count, error, **QUIET), DUP_ROUTE, seed, 8.0,
-        delays=[0.3], pause_s=0.5, sensor_type=sensor_type,
+        delays=[0.3], pause_s=0.5, noise=noise,
     )  # fmt: skip
     run = _simulate(scene)
     # every sensor really saw the person, and split blobs really came
     assert len({s for _, s in run.seen[1]}) == count
-    if sensor_type:
+    if noise:
         assert len(run.seen.get(0, [])) > 20  # (clutter is off: person id 0 = splits)
     assert run.confirmed_ids() == {1}
     assert run.pipeline.inner.tracker.counters["tracks_started"] == 1

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -18,9 +17,9 @@ from openptrack_py.detection.sources.base import (
     _rgb_from_o3d,
 )
 from openptrack_py.errors import SourceError
+from openptrack_py.sensor_types import AZURE_KINECT
 
 # Nominal horizontal field of view of the Azure Kinect colour camera (all resolutions).
-_AZURE_KINECT_HFOV_DEG = 90.0
 
 
 class AzureKinectSource(_LiveSource):
@@ -97,8 +96,7 @@ class AzureKinectSource(_LiveSource):
             depth = _depth_to_metres(raw, DEFAULT_DEPTH_SCALE, self.name)
         if self.intrinsics is None:
             height, width = depth.shape
-            fx = (width / 2) / math.tan(math.radians(_AZURE_KINECT_HFOV_DEG) / 2)
-            self.intrinsics = Intrinsics(width, height, fx, fx, (width - 1) / 2, (height - 1) / 2)
+            self.intrinsics = Intrinsics(width, height, *AZURE_KINECT.intrinsics_at(width, height))
         return depth, _rgb_from_o3d(rgbd.color)
 
     def close(self) -> None:

@@ -1,0 +1,107 @@
+"""A whole network file: every section together, checked for consistency."""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from openptrack_py.config.base import Name, StrictModel
+from openptrack_py.config.detector import DetectorConfig
+from openptrack_py.config.output import OutputConfig
+from openptrack_py.config.recorder import RecorderConfig
+from openptrack_py.config.sensors import SensorConfig
+from openptrack_py.config.sim import SimConfig
+from openptrack_py.config.tracker import TrackerConfig
+from openptrack_py.config.zenoh import ZenohConfig
+from openptrack_py.errors import ConfigError
+
+
+class NetworkConfig(StrictModel):
+    """A whole deployment, as read from one network file.
+
+    Parameters
+    ----------
+    site : str
+        Site name, the second chunk of every key (``opt/<site>/...``).
+    zenoh : ZenohConfig
+        How sessions meet.
+    sensors : list of SensorConfig
+        Every sensor; ids must be unique.
+    sim : SimConfig, optional
+        Present when some sensors are simulated.
+    tracker : TrackerConfig, optional
+        Present to run a tracker.
+    outputs : list of OutputConfig
+        Output nodes; names must be unique.
+    recorder : RecorderConfig, optional
+        Present to record the run.
+    detector : DetectorConfig
+        Settings of every detector node (sensor machines, and ``rgbd`` simulation).
+    stats_interval_s : float
+        How often every node publishes its counters.
+    """
+
+    site: Name = "default"
+    zenoh: ZenohConfig = Field(default_factory=ZenohConfig)
+    sensors: list[SensorConfig] = Field(default_factory=list)
+    sim: SimConfig | None = None
+    tracker: TrackerConfig | None = None
+    outputs: list[OutputConfig] = Field(default_factory=list)
+    recorder: RecorderConfig | None = None
+    detector: DetectorConfig = Field(default_factory=DetectorConfig)
+    stats_interval_s: float = Field(2.0, gt=0.0, le=3600.0)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> NetworkConfig:
+        ids = [s.id for s in self.sensors]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        if duplicates:
+            raise ValueError(f"sensor ids must be unique; repeated: {', '.join(duplicates)}")
+        names = [o.name for o in self.outputs]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"output names must be unique; repeated: {', '.join(twice)}")
+        simulated = [s.id for s in self.sensors if s.source == "sim"]
+        if self.sim is not None and self.sim.sensor_model == "rgbd":
+            if self.sim.use_scenario_sensors:
+                raise ValueError(
+                    "sim.use_scenario_sensors must be false with sim.sensor_model 'rgbd': "
+                    "a detector node renders each of the network's own sim sensors"
+                )
+            if not simulated:
+                raise ValueError(
+                    "sim.sensor_model 'rgbd' needs sensors with source 'sim' to render "
+                    "(none listed)"
+                )
+        if simulated and self.sim is None:
+            raise ValueError(
+                f"sensors {', '.join(simulated)} have source 'sim' but there is no 'sim' section"
+            )
+        return self
+
+    def output(self, name: str) -> OutputConfig:
+        """Return the output node with this name.
+
+        Raises
+        ------
+        ConfigError
+            If there is none.
+        """
+        for o in self.outputs:
+            if o.name == name:
+                return o
+        known = ", ".join(o.name for o in self.outputs) or "none"
+        raise ConfigError(f"outputs: no output named {name!r} (known: {known})")
+
+    def sensor(self, sensor_id: str) -> SensorConfig:
+        """Return the sensor with this id.
+
+        Raises
+        ------
+        ConfigError
+            If no sensor has that id.
+        """
+        for s in self.sensors:
+            if s.id == sensor_id:
+                return s
+        known = ", ".join(s.id for s in self.sensors) or "none"
+        raise ConfigError(f"sensors: no sensor with id {sensor_id!r} (known: {known})")

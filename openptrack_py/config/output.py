@@ -1,0 +1,162 @@
+"""The ``outputs`` section: smoother and sinks (UDP JSON, OSC, WebSocket and web view)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, field_validator
+
+from openptrack_py.config.base import Name, StrictModel
+
+
+class SmootherConfig(StrictModel):
+    """OpenPTrack's moving-average smoother, corrected (defaults: OpenPTrack v2).
+
+    Parameters
+    ----------
+    rate_hz : float
+        Output rate.
+    window_size : int
+        Positions averaged per track.
+    position_lifetime_s : float
+        Positions older than this leave the average.
+    track_lifetime_s : float
+        A track leaves the output this long after its last real detection
+        (``track_lifetime_with_no_detections``).
+    publish_empty : bool
+        Send a frame every cycle even when no one is tracked; otherwise send an empty
+        frame every ``heartbeat_interval_s`` only.
+    heartbeat_interval_s : float
+        Period of the empty frames when ``publish_empty`` is off.
+    """
+
+    rate_hz: float = Field(30.0, gt=0.0, le=240.0)
+    window_size: int = Field(5, ge=1, le=100)
+    position_lifetime_s: float = Field(0.6, gt=0.0, le=60.0)
+    track_lifetime_s: float = Field(0.6, gt=0.0, le=60.0)
+    publish_empty: bool = True
+    heartbeat_interval_s: float = Field(1.0, gt=0.0, le=60.0)
+
+
+class UdpSinkConfig(StrictModel):
+    """One UDP JSON destination (OpenPTrack's ``ros2udp_converter``).
+
+    Parameters
+    ----------
+    host : str
+        Destination address: a host, a broadcast address (``x.x.x.255``) or a multicast
+        group (``224.0.0.1``).
+    port : int
+        Destination port.
+    mode : {"unicast", "broadcast", "multicast"}
+        How to send.
+    ttl : int
+        Multicast time-to-live (hops).
+    format : {"opt-v2", "opt-v1"}
+        Root key ``people_tracks`` (v2, what the TouchDesigner component reads) or
+        ``tracks`` (v1, what the Python, Processing, Max and Node examples read).
+    trailing_nul : bool
+        End each datagram with one NUL byte, as OpenPTrack does (the Processing example
+        needs it; some Max externals break on it).
+    heartbeat : bool
+        Send ``alive_IDs`` / ``max_ID`` heartbeats (also when the room is empty).
+    heartbeat_interval_s : float
+        Heartbeat period.
+    max_datagram_bytes : int
+        Frames larger than this are split into several complete JSON messages with the
+        same header (never two JSON objects in one datagram).
+    """
+
+    host: str = "127.0.0.1"
+    port: int = Field(21234, ge=1, le=65535)
+    mode: Literal["unicast", "broadcast", "multicast"] = "unicast"
+    ttl: int = Field(1, ge=0, le=255)
+    format: Literal["opt-v2", "opt-v1"] = "opt-v2"
+    trailing_nul: bool = True
+    heartbeat: bool = True
+    heartbeat_interval_s: float = Field(0.25, gt=0.0, le=60.0)
+    max_datagram_bytes: int = Field(65507, ge=512, le=65507)
+
+
+class OscSinkConfig(StrictModel):
+    """One OSC destination (python-osc).
+
+    Parameters
+    ----------
+    host : str
+        Destination address.
+    port : int
+        Destination port.
+    prefix : str
+        Address prefix: messages go to ``<prefix>/frame``, ``<prefix>/track`` and
+        ``<prefix>/alive``.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = Field(7000, ge=1, le=65535)
+    prefix: str = Field("/opt", pattern=r"^(/[A-Za-z0-9_\-]+)+$")
+
+
+class WebConfig(StrictModel):
+    """The WebSocket stream and the live web view.
+
+    Parameters
+    ----------
+    host : str
+        Address to listen on (``0.0.0.0`` to allow other machines).
+    port : int
+        HTTP and WebSocket port: the view is ``http://host:port/``, the stream
+        ``ws://host:port/ws``.
+    room : tuple of float, optional
+        ``[x0, y0, x1, y1]`` drawn as the room; the sensors' reach when omitted.
+    max_queue : int
+        Frames a slow client may lag behind before it is dropped.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = Field(8080, ge=0, le=65535)
+    room: tuple[float, float, float, float] | None = None
+    max_queue: int = Field(32, ge=1, le=10_000)
+
+    @field_validator("room")
+    @classmethod
+    def _room_has_area(
+        cls, room: tuple[float, float, float, float] | None
+    ) -> tuple[float, float, float, float] | None:
+        if room is not None and not (room[2] > room[0] and room[3] > room[1]):
+            raise ValueError("must be [x0, y0, x1, y1] with x1 > x0 and y1 > y0")
+        return room
+
+
+class OutputConfig(StrictModel):
+    """An output node: smoother and sinks for creative apps.
+
+    Parameters
+    ----------
+    name : str
+        Node name (unique per site).
+    host : str
+        Machine that runs it.
+    source : {"smoothed", "raw"}
+        ``smoothed``: the moving-average smoother at a fixed rate. ``raw``: every
+        tracker step as it arrives (lowest latency).
+    smoother : SmootherConfig
+        Smoother parameters.
+    republish : bool
+        Publish the smoothed tracks on ``opt/<site>/tracks/smoothed``.
+    udp : list of UdpSinkConfig
+        UDP JSON destinations.
+    osc : list of OscSinkConfig
+        OSC destinations.
+    web : WebConfig, optional
+        WebSocket stream and web view.
+    """
+
+    name: Name = "output"
+    host: str = "localhost"
+    source: Literal["smoothed", "raw"] = "smoothed"
+    smoother: SmootherConfig = Field(default_factory=SmootherConfig)
+    republish: bool = True
+    udp: list[UdpSinkConfig] = Field(default_factory=list)
+    osc: list[OscSinkConfig] = Field(default_factory=list)
+    web: WebConfig | None = None

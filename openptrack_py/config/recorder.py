@@ -1,0 +1,27 @@
+"""The ``recorder`` section: which messages the recorder node writes, and where."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+
+from openptrack_py.config.base import StrictModel
+
+
+class RecorderConfig(StrictModel):
+    """A recorder node: writes every message on ``keys`` to a JSON-lines file.
+
+    Parameters
+    ----------
+    host : str
+        Machine that runs the recorder.
+    path : Path
+        Output file (``.jsonl``); a timestamp is inserted before the suffix if it exists.
+    keys : list of str
+        Key expressions below ``opt/<site>/`` to record.
+    """
+
+    host: str = "localhost"
+    path: Path = Path("recordings/run.jsonl")
+    keys: list[str] = Field(default_factory=lambda: ["detections/**", "tracks", "ground_truth"])

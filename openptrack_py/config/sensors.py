@@ -1,0 +1,108 @@
+"""The ``sensors`` section: each depth sensor's type, host, source and pose."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from openptrack_py.config.base import Name, StrictModel
+from openptrack_py.sensor_types import SensorTypeName
+
+
+class Pose(StrictModel):
+    """Where a sensor stands and where it looks, in the world frame.
+
+    Parameters
+    ----------
+    x, y : float
+        Position on the floor, metres.
+    z : float
+        Height of the sensor's optical centre above the floor, metres.
+    yaw_deg : float
+        Heading of the optical axis, degrees counter-clockwise from +x.
+    pitch_deg : float
+        Downward tilt of the optical axis, degrees (0 = horizontal, 90 = straight down).
+    roll_deg : float
+        Rotation about the optical axis, degrees.
+    """
+
+    x: float = 0.0
+    y: float = 0.0
+    z: float = Field(2.5, ge=0.0, le=30.0)
+    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
+    pitch_deg: float = Field(20.0, ge=-90.0, le=90.0)
+    roll_deg: float = Field(0.0, ge=-180.0, le=180.0)
+
+
+class PoseError(StrictModel):
+    """Simulated calibration error: the pose the sensor believes minus its true pose."""
+
+    dx: float = Field(0.0, ge=-5.0, le=5.0)
+    dy: float = Field(0.0, ge=-5.0, le=5.0)
+    dyaw_deg: float = Field(0.0, ge=-45.0, le=45.0)
+
+
+class SensorConfig(StrictModel):
+    """One depth sensor of the network.
+
+    Parameters left at ``None`` take the sensor type's defaults: the rate from
+    ``openptrack_py.sensor_types.SENSOR_TYPES``, the simulated miss and clutter figures
+    from ``openptrack_py.sim.sensors.SENSOR_NOISE``.
+
+    Parameters
+    ----------
+    id : str
+        Unique sensor id; also the last chunk of its detection key.
+    type : {"kinect1", "kinect2", "realsense", "sr4500"}
+        Sensor model.
+    host : str
+        Machine that runs this sensor's node.
+    source : {"sim", "camera", "recording"}
+        Where frames come from. ``sim`` sensors are produced by the simulator node.
+    rate_hz : float, optional
+        Frame rate; the type's nominal rate if omitted.
+    pose : Pose, optional
+        Pose in the world frame.
+    calibration : Path, optional
+        Calibration file giving the pose (alternative to ``pose``).
+    clock_offset_s : float
+        Simulated constant offset of the sensor's clock.
+    latency_s, latency_jitter_s : float
+        Simulated mean delay from capture to publication, and its standard deviation.
+    miss_probability : float, optional
+        Simulated probability of missing a fully visible person.
+    clutter_per_frame : float, optional
+        Simulated mean number of false detections per frame.
+    frame_drop_probability : float
+        Simulated probability that a whole frame is lost.
+    pose_error : PoseError
+        Simulated calibration error.
+    input : str, optional
+        Where a ``camera`` or ``recording`` sensor's frames come from, as for
+        ``openptrack detect``: ``realsense[:SERIAL]``, ``azure-kinect[:N]``, a ``.bag``
+        recording, a folder (``openptrack record-sensor`` output, TUM RGB-D) or a cloud.
+    """
+
+    id: Name
+    type: SensorTypeName = "kinect2"
+    host: str = "localhost"
+    source: Literal["sim", "camera", "recording"] = "sim"
+    rate_hz: float | None = Field(None, gt=0.0, le=120.0)
+    pose: Pose | None = None
+    calibration: Path | None = None
+    clock_offset_s: float = Field(0.0, ge=-3600.0, le=3600.0)
+    latency_s: float = Field(0.03, ge=0.0, le=5.0)
+    latency_jitter_s: float = Field(0.005, ge=0.0, le=1.0)
+    miss_probability: float | None = Field(None, ge=0.0, le=1.0)
+    clutter_per_frame: float | None = Field(None, ge=0.0, le=50.0)
+    frame_drop_probability: float = Field(0.0, ge=0.0, le=1.0)
+    pose_error: PoseError = Field(default_factory=PoseError)
+    input: str | None = None
+
+    @model_validator(mode="after")
+    def _pose_or_calibration(self) -> SensorConfig:
+        if self.pose is not None and self.calibration is not None:
+            raise ValueError("give either 'pose' or 'calibration', not both")
+        return self

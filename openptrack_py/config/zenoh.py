@@ -1,0 +1,57 @@
+"""The ``zenoh`` section: how a deployment's Zenoh sessions find each other."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, field_validator
+
+from openptrack_py.config.base import StrictModel, check_endpoint
+
+
+class ZenohConfig(StrictModel):
+    """How this deployment's Zenoh sessions find each other.
+
+    Every node is a Zenoh peer that listens on ``listen`` and connects to ``hub`` plus
+    ``connect``. The launcher on ``hub_host`` listens on ``hub`` itself, so all nodes
+    meet there and then link directly (peer gossip). Multicast scouting is off unless
+    asked for, so nothing depends on the LAN's multicast set-up.
+
+    Parameters
+    ----------
+    mode : {"peer", "client"}
+        Zenoh session mode of every node.
+    hub : str or None
+        Rendezvous endpoint, e.g. ``tcp/192.168.1.10:7447``. ``None`` disables it.
+    hub_host : str
+        Host whose launcher listens on ``hub``.
+    listen : list of str
+        Each node's own listening endpoints (port 0 = any free port).
+    connect : list of str
+        Extra endpoints every node connects to (e.g. a zenohd router).
+    multicast_scouting : bool
+        Let sessions discover each other by UDP multicast as well.
+    config_file : Path, optional
+        A Zenoh JSON5 configuration applied first; the keys above override it.
+    """
+
+    mode: Literal["peer", "client"] = "peer"
+    hub: str | None = "tcp/127.0.0.1:7447"
+    hub_host: str = "localhost"
+    listen: list[str] = Field(default_factory=lambda: ["tcp/127.0.0.1:0"])
+    connect: list[str] = Field(default_factory=list)
+    multicast_scouting: bool = False
+    config_file: Path | None = None
+
+    @field_validator("hub")
+    @classmethod
+    def _hub_endpoint(cls, value: str | None) -> str | None:
+        return None if value is None else check_endpoint(value)
+
+    @field_validator("listen", "connect")
+    @classmethod
+    def _endpoints(cls, value: list[str]) -> list[str]:
+        for item in value:
+            check_endpoint(item)
+        return value
