@@ -34,7 +34,7 @@ LAYERS: dict[str, int] = {
     "errors": 0,
     "sensor_types": 0,
     "config": 1,
-    "geometry": 1,
+    "geometry": 2,
     "messages": 2,
     "transport": 3,
     "runtime": 4,

@@ -42,8 +42,8 @@ from openptrack_py.sim import (
     World,
     build_scenario,
 )
+from openptrack_py.sim.directors import ShuttleDirector
 from openptrack_py.sim.live import LivePlayer, scenario_from_network
-from openptrack_py.sim.scenarios import ShuttleDirector
 from openptrack_py.sim.world import Snapshot
 from openptrack_py.transport import MemoryBus
 from tests.conftest import people_snapshot

@@ -28,6 +28,7 @@ from openptrack_py.geometry import apply, world_from_optical
 from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.scenarios import Scenario, build_scenario, scenario_world
+from openptrack_py.sim.world import Snapshot
 
 
 @dataclass
@@ -167,41 +168,15 @@ def evaluate_detector(
         config = detector_config_for(scenario)
     sc = scenario_for_sensor_type(scenario, seed, sensor_type, duration_s)
     world = scenario_world(sc)
-    kind = SENSOR_TYPES[sensor_type]
-    cams = []
-    for i, spec in enumerate(sc.sensors):
-        renderer = DepthRenderer(spec, sc.room, np.random.default_rng([seed, 31, i]))
-        detector = PeopleDetector(
-            config,
-            world_from_camera=world_from_optical(spec.pose),
-            sensor_type=sensor_type,
-            rng=np.random.default_rng([seed, 37, i]),
-        )
-        cams.append((spec, renderer, detector, DetectorScore()))
+    cams = _cameras(sc, seed, sensor_type, config)
     total = DetectorScore()
-    reach = min(kind.max_range_m, config.max_distance_for(sensor_type))
+    reach = min(SENSOR_TYPES[sensor_type].max_range_m, config.max_distance_for(sensor_type))
     steps = int(duration_s * sample_hz)
     for k in range(1, steps + 1):
-        t = k / sample_hz
-        snap = world.state_at(t)
+        snap = world.state_at(k / sample_hz)
         for _spec, renderer, detector, score in cams:
-            shot = renderer.render(snap, stamp=t, seq=k)
-            t0 = time.perf_counter()
-            result = detector.detect(shot.frame)
-            elapsed = time.perf_counter() - t0
-            # the whole body within the depth limit (the detector drops cut blobs)
-            centre = np.column_stack([snap.pos, snap.height / 2])
-            depth = apply(renderer.camera_from_world, centre)[:, 2]
-            in_range = depth + snap.radius + RANGE_CUT_M <= reach
-            with np.errstate(invalid="ignore", divide="ignore"):
-                head_share = shot.head_visible / np.maximum(shot.head_pixels, 1)
-                body_share = shot.visible_pixels / np.maximum(shot.body_pixels, 1)
-            should = in_range & (head_share >= 0.5) & (body_share >= min_visible)
-            should &= shot.head_pixels > 0
-            det_xy = np.array([d.position[:2] for d in result.detections]).reshape(-1, 2)
-            for target in (score, total):
-                match_frame(det_xy, snap.pos, should, match_radius_m, target)
-                target.detect_s.append(elapsed)
+            _score_view(renderer, detector, snap, k, reach, min_visible, match_radius_m,
+                        (score, total))  # fmt: skip
     out: dict[str, object] = {
         "scenario": scenario,
         "seed": seed,
@@ -212,3 +187,50 @@ def evaluate_detector(
         "sensors": {spec.id: score.as_dict() for spec, _, _, score in cams},
     }
     return out
+
+
+def _cameras(
+    sc: Scenario, seed: int, sensor_type: str, config: DetectorConfig
+) -> list[tuple[SensorConfig, DepthRenderer, PeopleDetector, DetectorScore]]:
+    """A renderer, a detector and a score per sensor of the scenario."""
+    cams = []
+    for i, spec in enumerate(sc.sensors):
+        renderer = DepthRenderer(spec, sc.room, np.random.default_rng([seed, 31, i]))
+        detector = PeopleDetector(
+            config,
+            world_from_camera=world_from_optical(spec.pose),
+            sensor_type=sensor_type,
+            rng=np.random.default_rng([seed, 37, i]),
+        )
+        cams.append((spec, renderer, detector, DetectorScore()))
+    return cams
+
+
+def _score_view(
+    renderer: DepthRenderer,
+    detector: PeopleDetector,
+    snap: Snapshot,
+    k: int,
+    reach: float,
+    min_visible: float,
+    match_radius_m: float,
+    scores: tuple[DetectorScore, ...],
+) -> None:
+    """Render one sensor's view of ``snap``, detect, and match into every score."""
+    shot = renderer.render(snap, stamp=snap.t, seq=k)
+    t0 = time.perf_counter()
+    result = detector.detect(shot.frame)
+    elapsed = time.perf_counter() - t0
+    # the whole body within the depth limit (the detector drops cut blobs)
+    centre = np.column_stack([snap.pos, snap.height / 2])
+    depth = apply(renderer.camera_from_world, centre)[:, 2]
+    in_range = depth + snap.radius + RANGE_CUT_M <= reach
+    with np.errstate(invalid="ignore", divide="ignore"):
+        head_share = shot.head_visible / np.maximum(shot.head_pixels, 1)
+        body_share = shot.visible_pixels / np.maximum(shot.body_pixels, 1)
+    should = in_range & (head_share >= 0.5) & (body_share >= min_visible)
+    should &= shot.head_pixels > 0
+    det_xy = np.array([d.position[:2] for d in result.detections]).reshape(-1, 2)
+    for target in scores:
+        match_frame(det_xy, snap.pos, should, match_radius_m, target)
+        target.detect_s.append(elapsed)

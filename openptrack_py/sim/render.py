@@ -33,7 +33,7 @@ import numpy as np
 
 from openptrack_py.detection.frame import Frame, Intrinsics
 from openptrack_py.geometry import apply, invert, world_from_optical
-from openptrack_py.sim.sensors import SensorSpec
+from openptrack_py.sim.sensor_spec import SensorSpec
 from openptrack_py.sim.world import Room, Snapshot
 
 WALL_HEIGHT_M = 3.0

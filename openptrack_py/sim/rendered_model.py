@@ -12,7 +12,8 @@ from openptrack_py.config import DetectorConfig
 from openptrack_py.detection.pipeline import PeopleDetector
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.sim.render import DepthRenderer
-from openptrack_py.sim.sensors import Observation, SensorModel, SensorSpec
+from openptrack_py.sim.sensors import Observation, SensorSpec
+from openptrack_py.sim.visibility import SensorView
 from openptrack_py.sim.world import Room, Snapshot
 
 
@@ -51,7 +52,7 @@ class RenderedSensorModel:
             rate_hz=spec.rate_hz,
             rng=np.random.default_rng(0),
         )
-        self._coverage = SensorModel(spec, room, np.random.default_rng(0))
+        self._coverage = SensorView(spec, room)
 
     def covers(self, pos: np.ndarray, height: np.ndarray) -> np.ndarray:
         """Mask of people whose head is in view (occlusion ignored)."""

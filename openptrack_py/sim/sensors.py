@@ -29,162 +29,24 @@ are the simulator's own model (:data:`SENSOR_NOISE`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from openptrack_py.config import Pose, PoseError, SensorConfig
-from openptrack_py.errors import ConfigError
-from openptrack_py.geometry import invert, world_from_optical
+from openptrack_py.geometry import world_from_optical
 from openptrack_py.messages.detection import Detection
-from openptrack_py.sensor_types import SENSOR_TYPES, SensorType
+from openptrack_py.sim.sensor_spec import APPEARANCE_BINS, SENSOR_NOISE, SensorNoise, SensorSpec
+from openptrack_py.sim.visibility import SensorView
 from openptrack_py.sim.world import Room, Snapshot
 
-APPEARANCE_BINS = 16
-"""Hue bins of the simulated appearance signature (each 22.5 degrees)."""
-
-
-@dataclass(frozen=True)
-class SensorNoise:
-    """How the simulated detector of one sensor type errs.
-
-    The type's geometry (image, field of view, ranges, rate) is in
-    :data:`openptrack_py.sensor_types.SENSOR_TYPES`.
-
-    Parameters
-    ----------
-    depth_sigma : tuple of float
-        ``(s0, s1, s2)``: centroid noise along the ray ``s0 + s1*d + s2*d**2`` metres.
-    lateral_sigma_m : float
-        Centroid noise across the ray, metres.
-    height_sigma_m : float
-        Noise of the measured height, metres.
-    miss_probability : float
-        Probability of missing a fully visible person within the reliable range.
-    clutter_per_frame : float
-        Mean number of false detections per frame.
-    split_probability : float
-        Probability that a detected person also yields a second, spurious blob.
-    """
-
-    depth_sigma: tuple[float, float, float]
-    lateral_sigma_m: float
-    height_sigma_m: float
-    miss_probability: float
-    clutter_per_frame: float
-    split_probability: float
-
-    def depth_sigma_at(self, distance_m: np.ndarray | float) -> np.ndarray:
-        """Standard deviation of the centroid along the ray at ``distance_m``."""
-        s0, s1, s2 = self.depth_sigma
-        d = np.asarray(distance_m, dtype=float)
-        return s0 + s1 * d + s2 * d * d
-
-
-SENSOR_NOISE: dict[str, SensorNoise] = {
-    "kinect1": SensorNoise(
-        depth_sigma=(0.02, 0.0, 0.0035), lateral_sigma_m=0.03, height_sigma_m=0.04,
-        miss_probability=0.05, clutter_per_frame=0.02, split_probability=0.004,
-    ),
-    "kinect2": SensorNoise(
-        depth_sigma=(0.03, 0.002, 0.0), lateral_sigma_m=0.025, height_sigma_m=0.03,
-        miss_probability=0.02, clutter_per_frame=0.03, split_probability=0.003,
-    ),
-    "realsense": SensorNoise(
-        depth_sigma=(0.03, 0.003, 0.0), lateral_sigma_m=0.025, height_sigma_m=0.03,
-        miss_probability=0.03, clutter_per_frame=0.04, split_probability=0.004,
-    ),
-    "sr4500": SensorNoise(
-        depth_sigma=(0.03, 0.002, 0.0), lateral_sigma_m=0.04, height_sigma_m=0.04,
-        miss_probability=0.05, clutter_per_frame=0.03, split_probability=0.004,
-    ),
-}  # fmt: skip
-"""The simulated detector's noise per sensor type (the types of ``SENSOR_TYPES``)."""
-
-
-@dataclass(frozen=True)
-class SensorSpec:
-    """One simulated sensor: type, pose and fault model.
-
-    Parameters
-    ----------
-    id : str
-        Sensor id.
-    type : SensorType
-        Nominal facts of the sensor's type.
-    pose : Pose
-        True pose in the world.
-    rate_hz : float
-        Frame rate.
-    clock_offset_s : float
-        Constant offset added to every stamp the sensor writes.
-    latency_s, latency_jitter_s : float
-        Mean capture-to-publication delay and its standard deviation.
-    miss_probability, clutter_per_frame : float
-        This sensor's figures, used instead of those of its noise model
-        (:meth:`from_config` takes them from the type's when the config leaves them out).
-    frame_drop_probability : float
-        Probability that a whole frame is never published.
-    pose_error : PoseError
-        Believed pose minus true pose.
-    phase_s : float
-        Time of the first frame after the scenario start.
-    noise_override : SensorNoise, optional
-        A noise model replacing the type's (see :attr:`noise`).
-    """
-
-    id: str
-    type: SensorType
-    pose: Pose
-    rate_hz: float
-    clock_offset_s: float = 0.0
-    latency_s: float = 0.03
-    latency_jitter_s: float = 0.005
-    miss_probability: float = 0.02
-    clutter_per_frame: float = 0.03
-    frame_drop_probability: float = 0.0
-    pose_error: PoseError = field(default_factory=PoseError)
-    phase_s: float = 0.0
-    noise_override: SensorNoise | None = None
-
-    @property
-    def noise(self) -> SensorNoise:
-        """The simulated detector's noise model: ``noise_override`` or the type's."""
-        if self.noise_override is not None:
-            return self.noise_override
-        return SENSOR_NOISE[self.type.name]
-
-    @classmethod
-    def from_config(cls, cfg: SensorConfig, phase_s: float = 0.0) -> SensorSpec:
-        """Build from a network file's sensor entry, filling type defaults.
-
-        Raises
-        ------
-        ConfigError
-            If the sensor has no pose (simulated sensors need one).
-        """
-        if cfg.pose is None:
-            raise ConfigError(f"sensors.{cfg.id}.pose: a simulated sensor needs a pose")
-        kind = SENSOR_TYPES[cfg.type]
-        noise = SENSOR_NOISE[cfg.type]
-        return cls(
-            id=cfg.id,
-            type=kind,
-            pose=cfg.pose,
-            rate_hz=cfg.rate_hz or kind.rate_hz,
-            clock_offset_s=cfg.clock_offset_s,
-            latency_s=cfg.latency_s,
-            latency_jitter_s=cfg.latency_jitter_s,
-            miss_probability=(
-                noise.miss_probability if cfg.miss_probability is None else cfg.miss_probability
-            ),
-            clutter_per_frame=(
-                noise.clutter_per_frame if cfg.clutter_per_frame is None else cfg.clutter_per_frame
-            ),
-            frame_drop_probability=cfg.frame_drop_probability,
-            pose_error=cfg.pose_error,
-            phase_s=phase_s,
-        )
+__all__ = [
+    "APPEARANCE_BINS",
+    "SENSOR_NOISE",
+    "Observation",
+    "SensorModel",
+    "SensorNoise",
+    "SensorSpec",
+]
 
 
 @dataclass(frozen=True)
@@ -203,22 +65,7 @@ class Observation:
     person_ids: tuple[int, ...]
 
 
-# Body sample points: (height fraction, lateral offset in body radii, weight).
-_BODY_POINTS = np.array(
-    [
-        (0.93, 0.0, 0.0),  # head (must be visible)
-        (0.78, -0.8, 1.0),  # shoulders
-        (0.78, 0.8, 1.0),
-        (0.62, 0.0, 1.0),  # chest
-        (0.48, -0.7, 1.0),  # hips
-        (0.48, 0.7, 1.0),
-        (0.25, 0.0, 1.0),  # knees
-    ]
-)
-_HEAD = 0
-
-
-class SensorModel:
+class SensorModel(SensorView):
     """Turns the world's state into one sensor's detections.
 
     Parameters
@@ -240,12 +87,9 @@ class SensorModel:
         rng: np.random.Generator,
         merge_distance_m: float = 0.3,
     ) -> None:
-        self.spec = spec
-        self.room = room
+        super().__init__(spec, room)
         self.rng = rng
         self.merge_distance_m = merge_distance_m
-        self.world_from_camera = world_from_optical(spec.pose)
-        self.camera_from_world = invert(self.world_from_camera)
         believed = spec.pose.model_copy(
             update={
                 "x": spec.pose.x + spec.pose_error.dx,
@@ -255,154 +99,6 @@ class SensorModel:
         )
         # true world -> camera -> world as the sensor believes it to be placed
         self.reported_from_world = world_from_optical(believed) @ self.camera_from_world
-        self.origin = self.world_from_camera[:3, 3].copy()
-        kind = spec.type
-        self._tan_h = math.tan(math.radians(kind.hfov_deg) / 2)
-        self._tan_v = math.tan(math.radians(kind.vfov_deg) / 2)
-        self._obstacles = np.array(
-            [(o.x0, o.y0, o.x1, o.y1, o.height) for o in room.obstacles], dtype=float
-        ).reshape(-1, 5)
-
-    # ------------------------------------------------------------------ geometry
-
-    def in_view(self, points: np.ndarray) -> np.ndarray:
-        """Mask of world points inside the field of view and depth range."""
-        cam = points @ self.camera_from_world[:3, :3].T + self.camera_from_world[:3, 3]
-        z = cam[..., 2]
-        rng = np.linalg.norm(cam, axis=-1)
-        return (
-            (z > 1e-6)
-            & (np.abs(cam[..., 0]) <= self._tan_h * z)
-            & (np.abs(cam[..., 1]) <= self._tan_v * z)
-            & (rng >= self.spec.type.min_range_m)
-            & (rng <= self.spec.type.max_range_m)
-        )
-
-    def covers(self, pos: np.ndarray, height: np.ndarray) -> np.ndarray:
-        """Mask of people whose head is in view (occlusion ignored)."""
-        if len(pos) == 0:
-            return np.zeros(0, dtype=bool)
-        heads = np.column_stack([pos, _BODY_POINTS[_HEAD, 0] * height])
-        return self.in_view(heads)
-
-    def _body_points(self, snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:
-        """World sample points ``(n, K, 3)`` and the unit ray direction on the floor."""
-        ray = snap.pos - self.origin[:2]
-        ray /= np.maximum(np.linalg.norm(ray, axis=1, keepdims=True), 1e-9)
-        side = np.column_stack([-ray[:, 1], ray[:, 0]])
-        frac, lateral = _BODY_POINTS[:, 0], _BODY_POINTS[:, 1]
-        xy = (
-            snap.pos[:, None, :]
-            + (lateral[None, :, None] * snap.radius[:, None, None]) * (side[:, None, :])
-        )
-        z = frac[None, :] * snap.height[:, None]
-        return np.concatenate([xy, z[..., None]], axis=2), ray
-
-    def _in_wedge(self, pos: np.ndarray, radius: np.ndarray) -> np.ndarray:
-        """Mask of floor discs that reach into the horizontal field of view."""
-        rel = pos - self.origin[:2]
-        dist = np.maximum(np.linalg.norm(rel, axis=1), 1e-6)
-        bearing = np.arctan2(rel[:, 1], rel[:, 0]) - math.radians(self.spec.pose.yaw_deg)
-        bearing = (bearing + math.pi) % (2 * math.pi) - math.pi
-        half = math.radians(self.spec.type.hfov_deg) / 2 + 0.1  # margin for tilt and roll
-        return (np.abs(bearing) <= half + np.arcsin(np.minimum(radius / dist, 1.0))) | (dist < 1.0)
-
-    def _occluded(
-        self,
-        points: np.ndarray,
-        owner: np.ndarray,
-        centres: np.ndarray,
-        radius: np.ndarray,
-        height: np.ndarray,
-    ) -> np.ndarray:
-        """Mask of ``points`` (M, 3) hidden by people (given cylinders) or furniture.
-
-        ``owner[i]`` is the row of the cylinder that point ``i`` belongs to (never its
-        own occluder), or -1.
-        """
-        hidden = np.zeros(len(points), dtype=bool)
-        if len(points) == 0:
-            return hidden
-        s = self.origin
-        d = points - s  # (M, 3)
-        dxy = d[:, :2]
-        len2 = np.maximum(np.einsum("ij,ij->i", dxy, dxy), 1e-12)
-        if len(centres):
-            # people as vertical cylinders: closest approach of the ray's floor projection
-            c = centres - s[:2]  # (n, 2)
-            t = (dxy @ c.T) / len2[:, None]  # (M, n)
-            cx = t * dxy[:, 0:1] - c[None, :, 0]
-            cy = t * dxy[:, 1:2] - c[None, :, 1]
-            z_at = s[2] + t * d[:, 2:3]
-            hit = (
-                (t > 0.0)
-                & (t < 1.0)
-                & (cx * cx + cy * cy < (radius**2)[None, :])
-                & (z_at < height[None, :])
-            )
-            mine = owner >= 0
-            hit[np.flatnonzero(mine), owner[mine]] = False
-            hidden |= hit.any(axis=1)
-        # furniture as boxes: slab test on the floor, then the ray's height inside
-        for x0, y0, x1, y1, top in self._obstacles:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                tx0 = (x0 - s[0]) / dxy[:, 0]
-                tx1 = (x1 - s[0]) / dxy[:, 0]
-                ty0 = (y0 - s[1]) / dxy[:, 1]
-                ty1 = (y1 - s[1]) / dxy[:, 1]
-            inside_x = (s[0] > x0) & (s[0] < x1)
-            inside_y = (s[1] > y0) & (s[1] < y1)
-            t_enter = np.maximum(
-                np.where(
-                    dxy[:, 0] == 0, np.where(inside_x, -np.inf, np.inf), np.minimum(tx0, tx1)
-                ),
-                np.where(
-                    dxy[:, 1] == 0, np.where(inside_y, -np.inf, np.inf), np.minimum(ty0, ty1)
-                ),
-            )
-            t_exit = np.minimum(
-                np.where(
-                    dxy[:, 0] == 0, np.where(inside_x, np.inf, -np.inf), np.maximum(tx0, tx1)
-                ),
-                np.where(
-                    dxy[:, 1] == 0, np.where(inside_y, np.inf, -np.inf), np.maximum(ty0, ty1)
-                ),
-            )
-            t_in = np.clip(t_enter, 0.0, 1.0)
-            t_out = np.clip(t_exit, 0.0, 1.0)
-            crosses = (t_enter < t_exit) & (t_enter < 1.0) & (t_exit > 0.0)
-            z_low = s[2] + np.minimum(t_in, t_out) * d[:, 2]
-            z_high = s[2] + np.maximum(t_in, t_out) * d[:, 2]
-            hidden |= crosses & (np.minimum(z_low, z_high) < top)
-        return hidden
-
-    def visibility(self, snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:
-        """Per person: whether the head is visible, and the visible body fraction."""
-        n = len(snap)
-        if n == 0:
-            return np.zeros(0, dtype=bool), np.zeros(0)
-        points, _ = self._body_points(snap)
-        k = points.shape[1]
-        flat = points.reshape(-1, 3)
-        visible = self.in_view(flat)
-        candidates = np.flatnonzero(visible)
-        if len(candidates):
-            owner = candidates // k
-            # Only people inside the (slightly widened) horizontal field of view can stand
-            # between the sensor and a point in view.
-            blockers = np.flatnonzero(self._in_wedge(snap.pos, snap.radius))
-            remap = np.full(n, -1)
-            remap[blockers] = np.arange(len(blockers))
-            visible[candidates] &= ~self._occluded(
-                flat[candidates], remap[owner], snap.pos[blockers], snap.radius[blockers],
-                snap.height[blockers],
-            )  # fmt: skip
-        visible = visible.reshape(n, k)
-        weights = _BODY_POINTS[:, 2]
-        fraction = (visible * weights).sum(axis=1) / weights.sum()
-        return visible[:, _HEAD], fraction
-
-    # --------------------------------------------------------------- observation
 
     def _miss_probability(self, distance: np.ndarray) -> np.ndarray:
         kind = self.spec.type

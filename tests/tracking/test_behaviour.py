@@ -17,7 +17,8 @@ from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.ground_truth import GroundTruthFrame
 from openptrack_py.messages.track import TrackBatch
 from openptrack_py.sim import DEFAULT_START_TIME, Obstacle, Room, Scenario, SensorSpec
-from openptrack_py.sim.scenarios import ShuttleDirector, build_scenario
+from openptrack_py.sim.directors import ShuttleDirector
+from openptrack_py.sim.scenarios import build_scenario
 from openptrack_py.sim.simulator import SensorFrame, TruthFrame
 from openptrack_py.tracking import (
     TrackingPipeline,
