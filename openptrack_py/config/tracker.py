@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from openptrack_py.config.base import StrictModel
 
@@ -45,7 +45,22 @@ class TrackerConfig(StrictModel):
     min_confidence_initialization : float
         Only detections at least this confident start new tracks.
     detections_to_validate : int
-        Associated detections a tentative track needs to become confirmed.
+        Confident detections a tentative track needs to become confirmed.
+    confirm_min_age_s : float
+        Least time from a track's first detection to its confirmation: several sensors
+        seeing one blob in the same instant are not yet consistent evidence.
+    confirm_min_support : float
+        Least share of the recent frames of the sensors that cover a tentative track's
+        place that must have detected it (0 disables).
+    confirm_min_displacement_m : float
+        Least distance a tentative track must have moved from where it started before
+        it is confirmed: people walk, while false positives that recur at one place (a
+        coat rack, a poster board, a fan) do not (0 disables; a person standing still
+        from the start is then confirmed once they move).
+    birth_gate_probability : float
+        A detection within ``chi2.ppf(birth_gate_probability, dof)`` of any track never
+        starts a new track (a detection that track could have produced); at least
+        ``gate_probability``.
     sec_before_fake : float
         A tentative track not confirmed within this time is deleted.
     tentative_timeout_s : float
@@ -86,6 +101,27 @@ class TrackerConfig(StrictModel):
         difference in network latency). ``none``: trust the stamps.
     max_tracks : int
         Safety limit on simultaneous tracks.
+    adaptive_noise : bool
+        Estimate each sensor's measurement noise online from the innovations of the
+        confirmed tracks it updates (bounded by ``noise_scale_min``/``noise_scale_max`` on
+        the configured covariance), so a sensor noisier than configured widens its own
+        gate instead of spawning tracks.
+    noise_scale_min, noise_scale_max : float
+        Bounds of that estimate, as factors on the configured covariance.
+    estimate_bias : bool
+        Estimate each sensor's constant offset against the fused tracks (where two or
+        more sensors see a person) and remove it from its detections.
+    max_bias_m : float
+        Largest offset estimated.
+    merge_distance_m : float
+        Two confirmed tracks closer than this, moving alike, both being detected and
+        never detected in one sensor frame together, follow one person.
+    merge_after_s : float
+        How long they must stay so before they are merged into the older one (0
+        disables merging).
+    support_rate : float
+        Weight of one expected sensor frame in a track's support (the exponential
+        average of detected / expected frames).
     """
 
     host: str = "localhost"
@@ -99,6 +135,10 @@ class TrackerConfig(StrictModel):
     min_confidence_detections: float = Field(0.0, ge=0.0, le=1.0)
     min_confidence_initialization: float = Field(0.5, ge=0.0, le=1.0)
     detections_to_validate: int = Field(3, ge=1, le=50)
+    confirm_min_age_s: float = Field(0.2, ge=0.0, le=60.0)
+    confirm_min_support: float = Field(0.5, ge=0.0, le=1.0)
+    confirm_min_displacement_m: float = Field(0.5, ge=0.0, le=10.0)
+    birth_gate_probability: float = Field(0.9999, ge=0.5, le=0.999999)
     sec_before_fake: float = Field(2.4, gt=0.0, le=60.0)
     tentative_timeout_s: float = Field(0.5, gt=0.0, le=60.0)
     sec_before_old: float = Field(3.0, gt=0.0, le=600.0)
@@ -113,3 +153,20 @@ class TrackerConfig(StrictModel):
     max_replay_steps: int = Field(64, ge=1, le=10_000)
     clock_correction: Literal["arrival", "none"] = "arrival"
     max_tracks: int = Field(1000, ge=1, le=100_000)
+    adaptive_noise: bool = True
+    noise_scale_min: float = Field(0.25, gt=0.0, le=1.0)
+    noise_scale_max: float = Field(25.0, ge=1.0, le=400.0)
+    estimate_bias: bool = True
+    max_bias_m: float = Field(0.5, ge=0.0, le=5.0)
+    merge_distance_m: float = Field(0.35, ge=0.0, le=2.0)
+    merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
+    support_rate: float = Field(0.2, gt=0.0, le=1.0)
+
+    @model_validator(mode="after")
+    def _birth_gate_outside_gate(self) -> TrackerConfig:
+        if self.birth_gate_probability < self.gate_probability:
+            raise ValueError(
+                f"birth_gate_probability ({self.birth_gate_probability}) must be at least "
+                f"gate_probability ({self.gate_probability})"
+            )
+        return self

@@ -14,7 +14,9 @@ from openptrack_py.tracking.base import (
     IdentityModel,
     Initiator,
     MeasurementModel,
+    Merger,
     MotionModel,
+    SensorModel,
     Stateful,
 )
 from openptrack_py.tracking.factory import build_tracker
@@ -22,10 +24,12 @@ from openptrack_py.tracking.gating import ChiSquareGater
 from openptrack_py.tracking.identity import NullIdentity
 from openptrack_py.tracking.lifecycle import ConfidenceInitiator, TimeDeleter
 from openptrack_py.tracking.measurement import PositionMeasurement, PositionVelocityMeasurement
+from openptrack_py.tracking.merging import NoMerging, TrackMerger
 from openptrack_py.tracking.motion import ConstantVelocity
 from openptrack_py.tracking.ordering import ClockAligner, ReorderBuffer
 from openptrack_py.tracking.pipeline import TrackingPipeline
-from openptrack_py.tracking.state import DetectionArrays, TrackTable
+from openptrack_py.tracking.sensor_model import OnlineSensorModel, StaticSensorModel
+from openptrack_py.tracking.state import DetectionArrays, LostTracks, TrackTable
 from openptrack_py.tracking.tracker import Tracker
 from openptrack_py.tracking.ukf import MerweSigmaPoints, UnscentedKalmanFilter
 
@@ -41,15 +45,22 @@ __all__ = [
     "GlobalNearestNeighbour",
     "IdentityModel",
     "Initiator",
+    "LostTracks",
     "MeasurementModel",
+    "Merger",
     "MerweSigmaPoints",
     "MotionModel",
+    "NoMerging",
     "NullIdentity",
+    "OnlineSensorModel",
     "PositionMeasurement",
     "PositionVelocityMeasurement",
     "ReorderBuffer",
+    "SensorModel",
     "Stateful",
+    "StaticSensorModel",
     "TimeDeleter",
+    "TrackMerger",
     "TrackTable",
     "Tracker",
     "TrackingPipeline",

@@ -13,6 +13,9 @@ gater              ``gate``: which track-detection pairs are admissible  ChiSqua
 associator         ``associate``: one-to-one pairs of least cost         GlobalNearestNeighbour
 initiator          ``initiate`` / ``confirm``: births and confirmation   ConfidenceInitiator
 deleter            ``delete``: which tracks end                          TimeDeleter
+sensors            ``correct`` / ``noise_scale`` / ``covers`` / ``learn``: OnlineSensorModel
+                   what is learned about each sensor
+merger             ``observe`` / ``merge``: two tracks, one person       TrackMerger
 identity           ``cost`` / ``observe`` / ``annotate``: who a track is NullIdentity
 =================  ===================================================  ==============
 
@@ -74,6 +77,8 @@ class Gater(Protocol):
 
     dof: int
     """Degrees of freedom the gate is built for (must equal the measurement's)."""
+    threshold: float
+    """The largest admissible squared distance."""
 
     def gate(self, d2: np.ndarray) -> np.ndarray:
         """Boolean mask of admissible pairs from squared Mahalanobis distances ``d2``."""
@@ -89,10 +94,11 @@ class Associator(Protocol):
 class Initiator(Protocol):
     """Decides which detections start tracks and when a track is confirmed."""
 
-    def initiate(
-        self, dets: DetectionArrays, assigned: np.ndarray, in_any_gate: np.ndarray
-    ) -> np.ndarray:
-        """Indices of the detections that start new (tentative) tracks."""
+    def initiate(self, dets: DetectionArrays, assigned: np.ndarray, d2: np.ndarray) -> np.ndarray:
+        """Indices of the detections that start new (tentative) tracks.
+
+        ``d2 (n_tracks, n_detections)``: squared Mahalanobis distances of every pair.
+        """
 
     def confirm(self, table: TrackTable, t: float) -> np.ndarray:
         """Confirmation flag of every track after the step at ``t``."""
@@ -103,6 +109,39 @@ class Deleter(Protocol):
 
     def delete(self, table: TrackTable, t: float) -> np.ndarray:
         """Mask of the tracks to delete at time ``t``."""
+
+
+class SensorModel(Protocol):
+    """What the tracker knows and learns about each sensor."""
+
+    def correct(self, dets: DetectionArrays) -> DetectionArrays:
+        """The batch's detections with what is known of their sensor's errors removed."""
+
+    def noise_scale(self, sensor_id: str) -> float:
+        """Factor on the configured measurement covariance of a sensor's detections."""
+
+    def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
+        """Mask of floor positions ``xy (n, 2)`` the sensor is known to see."""
+
+    def learn(
+        self,
+        sensor_id: str,
+        innovation: np.ndarray,
+        d2: np.ndarray,
+        gate: float,
+        multi_sensor: np.ndarray,
+    ) -> None:
+        """Learn from unambiguous updates of confirmed tracks by one batch."""
+
+
+class Merger(Protocol):
+    """Finds confirmed tracks that follow one person."""
+
+    def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+        """Tracks ``rows`` were all detected in one sensor frame at ``t``."""
+
+    def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
+        """Pairs ``(keep_row, drop_row)`` to merge at ``t``."""
 
 
 @runtime_checkable

@@ -7,6 +7,8 @@ arguments, so tests and other front ends can compose them directly.
 
 from __future__ import annotations
 
+from scipy.stats import chi2
+
 from openptrack_py.config import TrackerConfig
 from openptrack_py.tracking.association import GlobalNearestNeighbour
 from openptrack_py.tracking.base import MeasurementModel
@@ -14,7 +16,9 @@ from openptrack_py.tracking.gating import ChiSquareGater
 from openptrack_py.tracking.identity import NullIdentity
 from openptrack_py.tracking.lifecycle import ConfidenceInitiator, TimeDeleter
 from openptrack_py.tracking.measurement import PositionMeasurement, PositionVelocityMeasurement
+from openptrack_py.tracking.merging import TrackMerger
 from openptrack_py.tracking.motion import ConstantVelocity
+from openptrack_py.tracking.sensor_model import OnlineSensorModel
 from openptrack_py.tracking.tracker import Tracker
 
 
@@ -31,9 +35,21 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
         gater=ChiSquareGater(cfg.gate_probability, measurement.dim),
         associator=GlobalNearestNeighbour(),
         initiator=ConfidenceInitiator(
-            cfg.min_confidence_initialization, cfg.detections_to_validate
+            cfg.min_confidence_initialization,
+            cfg.detections_to_validate,
+            birth_gate=float(chi2.ppf(cfg.birth_gate_probability, measurement.dim)),
+            min_age_s=cfg.confirm_min_age_s,
+            min_support=cfg.confirm_min_support,
+            min_displacement_m=cfg.confirm_min_displacement_m,
         ),
         deleter=TimeDeleter(cfg.sec_before_fake, cfg.sec_before_old, cfg.tentative_timeout_s),
+        sensors=OnlineSensorModel(
+            adapt_noise=cfg.adaptive_noise,
+            estimate_bias=cfg.estimate_bias,
+            scale_bounds=(cfg.noise_scale_min, cfg.noise_scale_max),
+            max_bias_m=cfg.max_bias_m,
+        ),
+        merger=TrackMerger(cfg.merge_distance_m, cfg.merge_after_s),
         identity=NullIdentity(),
         detector_weight=cfg.detector_weight,
         min_confidence_detections=cfg.min_confidence_detections,
@@ -48,4 +64,5 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
         max_lateness_s=cfg.max_lateness_s,
         max_replay_steps=cfg.max_replay_steps,
         max_tracks=cfg.max_tracks,
+        support_rate=cfg.support_rate,
     )

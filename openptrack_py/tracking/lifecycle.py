@@ -1,4 +1,26 @@
-"""Which detections start tracks, when tracks are confirmed, and when they are deleted."""
+"""Which detections start tracks, when tracks are confirmed, and when they are deleted.
+
+Confirmation asks for *consistent evidence*, not a count of anything:
+
+* **birth**: a confident detection starts a tentative track only if it lies outside the
+  *birth gate* of every track, a wider chi-square gate than association's: a detection
+  that an existing track could have produced (a noisy detection of a tracked person, a
+  second sensor's view of them) never starts a second track;
+* **hits over time**: ``detections_to_validate`` confident detections, spread over at
+  least ``min_age_s``, so that three sensors seeing one blob in the same instant are not
+  enough;
+* **support**: most of the recent frames of the sensors that cover the track's place
+  detected it (``TrackTable.support``), so a blob one of three overlapping sensors
+  reports now and then is not a person;
+* **displacement**: the track has moved at least ``min_displacement_m`` from where it
+  started. People walk; a coat rack, a poster board or a fan that the detector takes
+  for a person recurs at one place and never does, and is never confirmed. (A person
+  who stands still from the moment the tracker starts is confirmed once they move.)
+
+Deletion: a tentative track goes ``sec_before_fake`` after its first detection or
+``tentative_timeout_s`` without a confident detection; a confirmed track goes
+``sec_before_old`` without one.
+"""
 
 from __future__ import annotations
 
@@ -11,35 +33,54 @@ from openptrack_py.tracking.state import DetectionArrays, TrackTable
 
 @dataclass(frozen=True)
 class ConfidenceInitiator:
-    """Start tentative tracks from confident detections no track can explain.
-
-    A detection starts a track when it was not associated, its confidence is at least
-    ``min_confidence``, and it lies outside every existing track's gate (a second blob
-    of someone already tracked, or the same person seen by an overlapping sensor, never
-    starts a second track). A tentative track is confirmed after
-    ``detections_to_validate`` associated detections.
+    """Start tentative tracks from confident, unexplained detections; confirm on evidence.
 
     Parameters
     ----------
     min_confidence : float
         Least confidence of a detection that starts a track.
     detections_to_validate : int
-        Associated detections (the first included) needed for confirmation.
+        Confident detections (the first included) needed for confirmation.
+    birth_gate : float
+        A detection whose squared Mahalanobis distance to some track is at most this
+        never starts a track; the default is the 2-D chi-square gate at 0.95 (the
+        association gate, OpenPTrack's rule).
+    min_age_s : float
+        Least time from a track's first detection to its confirmation.
+    min_support : float
+        Least :attr:`TrackTable.support` at confirmation.
+    min_displacement_m : float
+        Least distance from where the track started to where it is at confirmation.
     """
 
     min_confidence: float
     detections_to_validate: int
+    birth_gate: float = 5.991464547107979  # chi2.ppf(0.95, 2)
+    min_age_s: float = 0.0
+    min_support: float = 0.0
+    min_displacement_m: float = 0.0
 
-    def initiate(
-        self, dets: DetectionArrays, assigned: np.ndarray, in_any_gate: np.ndarray
-    ) -> np.ndarray:
-        """Indices of the detections that start new tracks."""
+    def initiate(self, dets: DetectionArrays, assigned: np.ndarray, d2: np.ndarray) -> np.ndarray:
+        """Indices of the detections that start new tracks.
+
+        ``d2 (n_tracks, n_detections)`` are the squared Mahalanobis distances of every
+        pair under the tracks' predicted innovation covariances.
+        """
+        explained = (d2 <= self.birth_gate).any(axis=0) if len(d2) else np.zeros(len(dets), bool)
         confident = dets.confidence >= self.min_confidence
-        return np.flatnonzero(~assigned & ~in_any_gate & confident)
+        return np.flatnonzero(~assigned & ~explained & confident)
 
     def confirm(self, table: TrackTable, t: float) -> np.ndarray:
         """Confirmation flags after the step at ``t``."""
-        return table.confirmed | (table.hits >= self.detections_to_validate)
+        ready = table.hits >= self.detections_to_validate
+        if self.min_age_s > 0:
+            ready &= t - table.first_seen >= self.min_age_s
+        if self.min_support > 0:
+            ready &= table.support >= self.min_support
+        if self.min_displacement_m > 0:
+            moved = np.hypot(*(table.x[:, 0:2] - table.birth_xy).T)
+            ready &= (moved >= self.min_displacement_m) | table.reborn
+        return table.confirmed | ready
 
 
 @dataclass(frozen=True)

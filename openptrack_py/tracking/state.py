@@ -30,6 +30,8 @@ class DetectionArrays:
         Position of each kept detection in the batch.
     xy, z, height, confidence, distance : ndarray
         Per-detection values.
+    sensor_id : str
+        The sensor of the batch.
     """
 
     index: np.ndarray
@@ -38,6 +40,7 @@ class DetectionArrays:
     height: np.ndarray
     confidence: np.ndarray
     distance: np.ndarray
+    sensor_id: str = ""
 
     def __len__(self) -> int:
         return len(self.index)
@@ -51,6 +54,7 @@ class DetectionArrays:
             height=self.height[rows],
             confidence=self.confidence[rows],
             distance=self.distance[rows],
+            sensor_id=self.sensor_id,
         )
 
     @classmethod
@@ -59,7 +63,10 @@ class DetectionArrays:
         kept = [(i, d) for i, d in enumerate(batch.detections) if d.confidence >= min_confidence]
         if not kept:
             empty = np.zeros(0)
-            return cls(np.zeros(0, dtype=int), np.zeros((0, 2)), empty, empty, empty, empty)
+            return cls(
+                np.zeros(0, dtype=int), np.zeros((0, 2)), empty, empty, empty, empty,
+                batch.sensor_id,
+            )  # fmt: skip
         rows = np.array([(d.x, d.y, d.z, d.height, d.confidence, d.distance) for _, d in kept])
         return cls(
             index=np.array([i for i, _ in kept]),
@@ -68,12 +75,47 @@ class DetectionArrays:
             height=rows[:, 3],
             confidence=rows[:, 4],
             distance=rows[:, 5],
+            sensor_id=batch.sensor_id,
         )
 
 
 @dataclass
 class TrackTable:
-    """Every track's state, as parallel arrays (one row per track)."""
+    """Every track's state, as parallel arrays (one row per track).
+
+    Parameters
+    ----------
+    ids : ndarray of int
+        Track ids, never reused.
+    x, cov : ndarray
+        UKF state ``[x, y, vx, vy]`` and its covariance.
+    z, height : ndarray
+        Smoothed centroid height and person height, metres.
+    confidence : ndarray
+        Exponential average of the detector confidence of the track's detections.
+    first_seen, last_seen : ndarray
+        Time of the first detection, and of the last confident one.
+    hits : ndarray of int
+        Confident detections so far.
+    confirmed : ndarray of bool
+        Whether the track is confirmed (published).
+    hist_t, hist_xy : ndarray
+        Remembered past positions (for the velocity measurement).
+    support : ndarray
+        Share of the recent frames of the sensors that should see the track that did
+        detect it (exponential average): how well the evidence holds up.
+    birth_xy : ndarray
+        Mean position of the track's first detections: where it started.
+    birth_n : ndarray of int
+        Detections averaged into ``birth_xy`` so far.
+    last_sensor : ndarray of int
+        Index of the sensor of the track's last detection.
+    multi_t : ndarray
+        Last time the track's detections came from two different sensors in a row.
+    reborn : ndarray of bool
+        The track started where a confirmed track was recently lost: a person seen
+        again, who need not prove they move.
+    """
 
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     x: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
@@ -87,10 +129,17 @@ class TrackTable:
     confirmed: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     hist_t: np.ndarray = field(default_factory=lambda: np.zeros((0, HISTORY)))
     hist_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, HISTORY, 2)))
+    support: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    birth_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    birth_n: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    last_sensor: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    multi_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reborn: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     COLUMNS = (
         "ids", "x", "cov", "z", "height", "confidence", "first_seen", "last_seen", "hits",
-        "confirmed", "hist_t", "hist_xy",
+        "confirmed", "hist_t", "hist_xy", "support", "birth_xy", "birth_n", "last_sensor",
+        "multi_t", "reborn",
     )  # fmt: skip
 
     def __len__(self) -> int:
@@ -109,3 +158,41 @@ class TrackTable:
         """Add rows (one array per column, same length)."""
         for name in self.COLUMNS:
             setattr(self, name, np.concatenate([getattr(self, name), rows[name]]))
+
+
+@dataclass
+class LostTracks:
+    """Where and when recently deleted confirmed tracks were last seen.
+
+    Parameters
+    ----------
+    xy : ndarray
+        ``(n, 2)`` last estimated positions.
+    t : ndarray
+        ``(n,)`` deletion times.
+    """
+
+    xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def copy(self) -> LostTracks:
+        """An independent copy."""
+        return LostTracks(self.xy.copy(), self.t.copy())
+
+    def add(self, xy: np.ndarray, t: float) -> None:
+        """Remember tracks lost at ``t`` at positions ``xy``."""
+        self.xy = np.concatenate([self.xy, xy.reshape(-1, 2)])
+        self.t = np.concatenate([self.t, np.full(len(xy), t)])
+
+    def forget_before(self, t: float) -> None:
+        """Drop what was lost before ``t``."""
+        keep = self.t >= t
+        self.xy, self.t = self.xy[keep], self.t[keep]
+
+    def near(self, xy: np.ndarray, t: float, radius_m: float, speed_mps: float) -> np.ndarray:
+        """Mask of positions a recently lost person could have walked to by ``t``."""
+        if not len(self.t) or not len(xy):
+            return np.zeros(len(xy), dtype=bool)
+        reach = radius_m + speed_mps * (t - self.t)
+        gap = np.hypot(*(xy[:, None, :] - self.xy[None, :, :]).transpose(2, 0, 1))
+        return (gap <= reach[None, :]).any(axis=1)

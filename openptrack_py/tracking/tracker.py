@@ -37,16 +37,34 @@ from openptrack_py.tracking.base import (
     IdentityModel,
     Initiator,
     MeasurementModel,
+    Merger,
     MotionModel,
+    SensorModel,
     Stateful,
 )
 from openptrack_py.tracking.gating import mahalanobis
 from openptrack_py.tracking.identity import NullIdentity
+from openptrack_py.tracking.merging import NoMerging
 from openptrack_py.tracking.replay import ReplayHistory
-from openptrack_py.tracking.state import HISTORY, HISTORY_SPACING_S, DetectionArrays, TrackTable
+from openptrack_py.tracking.sensor_model import StaticSensorModel
+from openptrack_py.tracking.state import (
+    HISTORY,
+    HISTORY_SPACING_S,
+    DetectionArrays,
+    LostTracks,
+    TrackTable,
+)
 from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKalmanFilter
 
 log = logging.getLogger(__name__)
+
+BIRTH_DETECTIONS = 5
+"""Detections averaged into where a track started (``TrackTable.birth_xy``)."""
+REACQUIRE_S = 30.0
+"""How long a lost confirmed track is remembered, so a person seen again there is known."""
+REACQUIRE_RADIUS_M = 0.5
+REACQUIRE_SPEED_MPS = 1.0
+"""A person lost ``dt`` ago may be found within ``radius + speed * dt`` of where they were."""
 
 
 @dataclass(frozen=True)
@@ -54,6 +72,7 @@ class _Snapshot:
     """The tracker's whole state before one step."""
 
     table: TrackTable
+    lost: LostTracks
     time: float | None
     max_id: int
     started: int
@@ -78,6 +97,11 @@ class Tracker:
         Starts and confirms tracks.
     deleter : Deleter
         Ends tracks.
+    sensors : SensorModel, optional
+        What is learned about each sensor (noise, bias, coverage);
+        :class:`~openptrack_py.tracking.sensor_model.StaticSensorModel` if omitted.
+    merger : Merger, optional
+        Merges tracks that follow one person; none if omitted.
     identity : IdentityModel, optional
         Who each track is; :class:`~openptrack_py.tracking.identity.NullIdentity` if omitted.
     detector_weight : float
@@ -108,6 +132,10 @@ class Tracker:
         A late batch that would replay more steps than this is dropped.
     max_tracks : int
         No new track starts while this many exist.
+    support_rate : float
+        Weight of one expected frame in a track's support (see ``TrackTable.support``).
+    multi_sensor_s : float
+        A track detected by two sensors in a row within this long is seen by several.
 
     Examples
     --------
@@ -124,6 +152,8 @@ class Tracker:
         associator: Associator,
         initiator: Initiator,
         deleter: Deleter,
+        sensors: SensorModel | None = None,
+        merger: Merger | None = None,
         identity: IdentityModel | None = None,
         *,
         detector_weight: float = -1.0,
@@ -139,6 +169,8 @@ class Tracker:
         max_lateness_s: float = 1.0,
         max_replay_steps: int = 64,
         max_tracks: int = 1000,
+        support_rate: float = 0.2,
+        multi_sensor_s: float = 1.0,
     ) -> None:
         if gater.dof != measurement.dim:
             raise ValueError(
@@ -157,7 +189,12 @@ class Tracker:
         self.associator = associator
         self.initiator = initiator
         self.deleter = deleter
+        self.sensors: SensorModel = sensors if sensors is not None else StaticSensorModel()
+        self.merger: Merger = merger if merger is not None else NoMerging()
         self.identity: IdentityModel = identity if identity is not None else NullIdentity()
+        self.support_rate = support_rate
+        self.multi_sensor_s = multi_sensor_s
+        self._sensor_index: dict[str, int] = {}
         self.detector_weight = detector_weight
         self.min_confidence_detections = min_confidence_detections
         self.min_confidence_keepalive = min_confidence_keepalive
@@ -172,6 +209,7 @@ class Tracker:
         self.history: ReplayHistory[_Snapshot] = ReplayHistory(max_lateness_s, max_replay_steps)
         self.ukf = UnscentedKalmanFilter(MerweSigmaPoints(4))
         self.table = TrackTable()
+        self.lost = LostTracks()
         self.time: float | None = None
         self.max_id = 0
         self.seq = 0
@@ -184,6 +222,7 @@ class Tracker:
                 "replayed_steps",
                 "tracks_started",
                 "tracks_deleted",
+                "tracks_merged",
             ),
             0,
         )
@@ -198,6 +237,8 @@ class Tracker:
             self.associator,
             self.initiator,
             self.deleter,
+            self.sensors,
+            self.merger,
             self.identity,
         )
 
@@ -219,6 +260,7 @@ class Tracker:
         stateful role of the same kind in the same place.
         """
         self.table = other.table
+        self.lost = other.lost
         self.time = other.time
         self.max_id = other.max_id
         self.seq = other.seq
@@ -238,13 +280,14 @@ class Tracker:
             shown &= tb.confirmed
         rows = np.flatnonzero(shown)
         fresh = np.clip(1.0 - unseen[rows] / self.confidence_decay_s, 0.0, 1.0)
+        evidence = tb.confidence[rows] * tb.support[rows] * fresh
         columns = zip(
             tb.ids[rows].tolist(),
             tb.x[rows].tolist(),
             tb.z[rows].tolist(),
             tb.height[rows].tolist(),
             np.maximum(t - tb.first_seen[rows], 0.0).tolist(),
-            np.clip(tb.confidence[rows] * fresh, 0.0, 1.0).tolist(),
+            np.clip(evidence, 0.0, 1.0).tolist(),
             (unseen[rows] <= self.visibility_timeout_s).tolist(),
             tb.confirmed[rows].tolist(),
             strict=True,
@@ -282,21 +325,23 @@ class Tracker:
         if self.late_policy == "replay" and self.history.max_lateness_s > 0:
             self.history.remember(t, self._snapshot(), batch)
         dets = DetectionArrays.from_batch(batch, self.min_confidence_detections)
+        dets = self.sensors.correct(dets)
         self._predict_to(t)
-        assigned, in_gate = self._associate_and_update(dets, t)
-        self._start_tracks(dets, assigned, in_gate, t)
+        assigned, d2 = self._associate_and_update(dets, t)
+        self._start_tracks(dets, assigned, d2, t)
         self._lifecycle(t)
 
     def _snapshot(self) -> _Snapshot:
         c = self.counters
         roles = tuple(r.snapshot() if isinstance(r, Stateful) else None for r in self.roles)
         return _Snapshot(
-            self.table.copy(), self.time, self.max_id, c["tracks_started"], c["tracks_deleted"],
-            roles,
+            self.table.copy(), self.lost.copy(), self.time, self.max_id, c["tracks_started"],
+            c["tracks_deleted"], roles,
         )  # fmt: skip
 
     def _restore(self, snapshot: _Snapshot) -> None:
         self.table, self.time, self.max_id = snapshot.table, snapshot.time, snapshot.max_id
+        self.lost = snapshot.lost
         # what happened after the snapshot is undone, and will be counted again on replay
         self.counters["tracks_started"] = snapshot.started
         self.counters["tracks_deleted"] = snapshot.deleted
@@ -337,6 +382,10 @@ class Tracker:
         tb = self.table
         proj = self.ukf.project(tb.x, tb.cov, self.measurement.hx)
         z, r = self.measurement.pair_measurements(dets, tb, t)
+        scale = self.sensors.noise_scale(dets.sensor_id)
+        if scale != 1.0:
+            r = r.copy()
+            r[..., 0:2, 0:2] *= scale
         resid = z - proj.z[:, None, :]
         d2, logdet = mahalanobis(resid, proj.pzz[:, None], r)
         return proj, z, r, d2, logdet
@@ -344,14 +393,15 @@ class Tracker:
     def _associate_and_update(
         self, dets: DetectionArrays, t: float
     ) -> tuple[np.ndarray, np.ndarray]:
+        """Assign and update; return the assigned-detection mask and every pair's ``d2``."""
         tb = self.table
         assigned = np.zeros(len(dets), dtype=bool)
-        in_gate = np.zeros(len(dets), dtype=bool)
         if not len(tb) or not len(dets):
-            return assigned, in_gate
+            self._update_support(np.zeros(0, dtype=int), dets.sensor_id)
+            return assigned, np.zeros((len(tb), len(dets)))
         proj, z, r, d2, logdet = self._pair_terms(dets, t)
         allowed = self.gater.gate(d2)
-        in_gate = allowed.any(axis=0)
+        gated = allowed.copy()
         # A weak detection (clutter-like) may refine a track that is being seen, but may
         # not capture a lost track whose gate has grown wide.
         weak = dets.confidence < self.min_confidence_keepalive
@@ -363,17 +413,64 @@ class Tracker:
             cost = cost + extra
         pairs = self._assign_by_stage(cost, allowed)
         if not pairs:
-            return assigned, in_gate
+            self._update_support(np.zeros(0, dtype=int), dets.sensor_id)
+            return assigned, d2
         rows = np.array([p[0] for p in pairs])
         cols = np.array([p[1] for p in pairs])
+        innovation = z[rows, cols, 0:2] - proj.z[rows, 0:2]
+        self._learn(rows, cols, innovation, d2, gated, dets.sensor_id, t)
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
         tb.x[rows], tb.cov[rows] = self.ukf.update(
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r[rows, cols]
         )
         self._absorb(rows, cols, dets, t)
+        self._update_support(rows, dets.sensor_id)
+        self.merger.observe(tb, rows, t)
         self.identity.observe(tb, rows, cols, dets, t)
         assigned[cols] = True
-        return assigned, in_gate
+        return assigned, d2
+
+    def _learn(
+        self,
+        rows: np.ndarray,
+        cols: np.ndarray,
+        innovation: np.ndarray,
+        d2: np.ndarray,
+        gated: np.ndarray,
+        sensor_id: str,
+        t: float,
+    ) -> None:
+        """Hand the sensor model this batch's unambiguous updates of settled tracks."""
+        tb = self.table
+        clear = (
+            tb.confirmed[rows]
+            & (t - tb.first_seen[rows] >= 1.0)
+            & (gated[rows].sum(axis=1) == 1)
+            & (gated[:, cols].sum(axis=0) == 1)
+        )
+        if not clear.any():
+            return
+        index = self._sensor_index.get(sensor_id, -1)
+        multi = (t - tb.multi_t[rows] <= self.multi_sensor_s) | (tb.last_sensor[rows] != index)
+        self.sensors.learn(
+            sensor_id,
+            innovation[clear],
+            d2[rows[clear], cols[clear]],
+            float(self.gater.threshold),
+            multi[clear],
+        )
+
+    def _update_support(self, hit_rows: np.ndarray, sensor_id: str) -> None:
+        """Tracks this sensor should have seen gain support if detected, lose it if not."""
+        tb = self.table
+        if not len(tb):
+            return
+        expected = self.sensors.covers(sensor_id, tb.x[:, 0:2])
+        hit = np.zeros(len(tb), dtype=bool)
+        hit[hit_rows] = True
+        expected |= hit
+        a = self.support_rate
+        tb.support[expected] += a * (hit[expected] - tb.support[expected])
 
     def _assign_by_stage(self, cost: np.ndarray, allowed: np.ndarray) -> list[tuple[int, int]]:
         """Confirmed tracks choose first; tentative tracks only get what is left.
@@ -415,6 +512,17 @@ class Tracker:
         confident = dets.confidence[cols] >= self.min_confidence_keepalive
         tb.last_seen[rows[confident]] = np.maximum(tb.last_seen[rows[confident]], t)
         tb.hits[rows] += confident
+        # where the track started: the mean of its first few detections
+        young = tb.birth_n[rows] < BIRTH_DETECTIONS
+        yr, yc = rows[young], cols[young]
+        n = tb.birth_n[yr][:, None]
+        tb.birth_xy[yr] = (tb.birth_xy[yr] * n + dets.xy[yc]) / (n + 1)
+        tb.birth_n[yr] += 1
+        # which sensors see it: detections from two sensors in a row
+        index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
+        other = tb.last_sensor[rows] != index
+        tb.multi_t[rows[other]] = t
+        tb.last_sensor[rows] = index
         # history of posterior positions, at most one entry per spacing interval; the
         # oldest (or an empty) slot is overwritten
         due = rows[t - tb.hist_t[rows].max(axis=1) >= HISTORY_SPACING_S]
@@ -423,9 +531,9 @@ class Tracker:
         tb.hist_xy[due, slots] = tb.x[due, 0:2]
 
     def _start_tracks(
-        self, dets: DetectionArrays, assigned: np.ndarray, in_gate: np.ndarray, t: float
+        self, dets: DetectionArrays, assigned: np.ndarray, d2: np.ndarray, t: float
     ) -> None:
-        new = self.initiator.initiate(dets, assigned, in_gate)
+        new = self.initiator.initiate(dets, assigned, d2)
         room = self.max_tracks - len(self.table)
         if room <= 0 or not len(new):
             return
@@ -458,6 +566,14 @@ class Tracker:
             confirmed=np.zeros(n, dtype=bool),
             hist_t=hist_t,
             hist_xy=hist_xy,
+            support=np.ones(n),
+            birth_xy=dets.xy[new].copy(),
+            birth_n=np.ones(n, dtype=np.int64),
+            last_sensor=np.full(
+                n, self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
+            ),
+            multi_t=np.full(n, -np.inf),
+            reborn=self.lost.near(dets.xy[new], t, REACQUIRE_RADIUS_M, REACQUIRE_SPEED_MPS),
         )
         self.identity.started(self.table, np.arange(first, first + n), dets.subset(new), t)
 
@@ -466,8 +582,39 @@ class Tracker:
         if not len(tb):
             return
         tb.confirmed = self.initiator.confirm(tb, t)
+        self._merge(t)
         gone = self.deleter.delete(tb, t)
+        self.lost.forget_before(t - REACQUIRE_S)
         if gone.any():
+            self.lost.add(tb.x[gone & tb.confirmed, 0:2], t)
             self.identity.ended(tb, np.flatnonzero(gone), t)
             self.counters["tracks_deleted"] += int(gone.sum())
             tb.keep(~gone)
+
+    def _merge(self, t: float) -> None:
+        """Fold each track that follows the same person as an older one into it."""
+        pairs = self.merger.merge(self.table, t)
+        if not pairs:
+            return
+        tb = self.table
+        keep = np.array([p[0] for p in pairs])
+        drop = np.array([p[1] for p in pairs])
+        # the kept track moves to the information-weighted mean of both positions
+        pk, pd = tb.cov[keep, 0:2, 0:2], tb.cov[drop, 0:2, 0:2]
+        ik, idr = np.linalg.inv(pk), np.linalg.inv(pd)
+        fused = np.linalg.solve(
+            ik + idr,
+            (ik @ tb.x[keep, 0:2, None] + idr @ tb.x[drop, 0:2, None]),
+        )[..., 0]
+        tb.x[keep, 0:2] = fused
+        tb.first_seen[keep] = np.minimum(tb.first_seen[keep], tb.first_seen[drop])
+        tb.last_seen[keep] = np.maximum(tb.last_seen[keep], tb.last_seen[drop])
+        tb.hits[keep] += tb.hits[drop]
+        tb.support[keep] = np.maximum(tb.support[keep], tb.support[drop])
+        tb.confidence[keep] = np.maximum(tb.confidence[keep], tb.confidence[drop])
+        self.identity.ended(tb, drop, t)
+        self.counters["tracks_merged"] += len(drop)
+        self.counters["tracks_deleted"] += len(drop)
+        mask = np.ones(len(tb), dtype=bool)
+        mask[drop] = False
+        tb.keep(mask)

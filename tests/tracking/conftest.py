@@ -52,9 +52,10 @@ class ThresholdGate:
     """Admits squared distances up to 9."""
 
     dof = 2
+    threshold = 9.0
 
     def gate(self, d2: np.ndarray) -> np.ndarray:
-        return d2 <= 9.0
+        return d2 <= self.threshold
 
 
 class GreedyAssociator:
@@ -78,9 +79,8 @@ class GreedyAssociator:
 class EveryOrphanInitiator:
     """Every detection no track explains starts a track; two hits confirm it."""
 
-    def initiate(
-        self, dets: DetectionArrays, assigned: np.ndarray, in_any_gate: np.ndarray
-    ) -> np.ndarray:
+    def initiate(self, dets: DetectionArrays, assigned: np.ndarray, d2: np.ndarray) -> np.ndarray:
+        in_any_gate = (d2 <= ThresholdGate.threshold).any(axis=0) if len(d2) else False
         return np.flatnonzero(~assigned & ~in_any_gate)
 
     def confirm(self, table: TrackTable, t: float) -> np.ndarray:
@@ -92,6 +92,39 @@ class UnseenDeleter:
 
     def delete(self, table: TrackTable, t: float) -> np.ndarray:
         return t - table.last_seen > 1.0
+
+
+class PerfectSensors:
+    """Every sensor exactly as configured; nothing learned."""
+
+    def correct(self, dets: DetectionArrays) -> DetectionArrays:
+        return dets
+
+    def noise_scale(self, sensor_id: str) -> float:
+        return 1.0
+
+    def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
+        return np.zeros(len(xy), dtype=bool)
+
+    def learn(
+        self,
+        sensor_id: str,
+        innovation: np.ndarray,
+        d2: np.ndarray,
+        gate: float,
+        multi_sensor: np.ndarray,
+    ) -> None:
+        pass
+
+
+class NeverMerge:
+    """No two tracks are ever one person."""
+
+    def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+        pass
+
+    def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
+        return []
 
 
 @dataclass
@@ -154,6 +187,8 @@ def stub_tracker(identity: object | None = None, **kw: object) -> Tracker:
         GreedyAssociator(),
         EveryOrphanInitiator(),
         UnseenDeleter(),
+        PerfectSensors(),
+        NeverMerge(),
         identity,  # type: ignore[arg-type]
         **kw,  # type: ignore[arg-type]
     )
@@ -169,4 +204,6 @@ def stub_roles() -> dict[str, object]:
         "associator": GreedyAssociator(),
         "initiator": EveryOrphanInitiator(),
         "deleter": UnseenDeleter(),
+        "sensors": PerfectSensors(),
+        "merger": NeverMerge(),
     }

@@ -197,7 +197,8 @@ def test_people_crossing_keep_their_ids(seed: int) -> None:
     last = {p.id: p for p in run.frames[-1][1].people}
     assert last[1].x > 7.0
     assert last[2].x < 3.0
-    before = {p: _one_id(run.ids_near(p, 0.3, 1.5)) for p in (1, 2)}
+    # they stand still for 1 s: a track is confirmed once its person has moved
+    before = {p: _one_id(run.ids_near(p, 2.0, 3.0)) for p in (1, 2)}
     after = {p: _one_id(run.ids_near(p, 8.0, 9.0)) for p in (1, 2)}
     assert before[1] != before[2]
     assert after == before
@@ -282,7 +283,8 @@ def test_person_walking_into_another_sensors_view_keeps_their_id(
         assert max(by_a) + 0.3 < min(by_b)  # nobody sees them for a while
     else:
         assert min(by_b) < max(by_a) < min(by_b) + 1.0
-    before = _one_id(run.ids_near(1, min(by_a) + 0.5, max(by_a)))
+    # they start walking at 0.5 s and are confirmed once they have moved
+    before = _one_id(run.ids_near(1, min(by_a) + 1.5, max(by_a)))
     assert _one_id(run.ids_near(1, min(by_b) + 0.5, max(by_b))) == before
     assert run.confirmed_ids() == {before}
 

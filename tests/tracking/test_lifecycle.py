@@ -21,11 +21,16 @@ from tests.tracking.helpers import (
     make_batch,
 )
 
+# These tests feed people standing still: they check the lifecycle rules, not that a
+# track must have moved before it is confirmed (tested below on its own).
+STILL = {"confirm_min_displacement_m": 0.0, "confirm_min_age_s": 0.0}
+
+
 # ------------------------------------------------------------- lifecycle
 
 
 def test_tentative_tracks_are_not_published_by_default() -> None:
-    tracker = build_tracker(TrackerConfig())
+    tracker = build_tracker(TrackerConfig(**STILL))
     out = tracker.step(make_batch(T0, [det(2.0, 2.0)]))
     assert out.tracks == ()
     assert out.alive_ids == (1,)
@@ -33,7 +38,7 @@ def test_tentative_tracks_are_not_published_by_default() -> None:
 
 
 def test_tentative_tracks_are_published_on_request() -> None:
-    tracker = build_tracker(TrackerConfig(publish_tentative=True))
+    tracker = build_tracker(TrackerConfig(publish_tentative=True, **STILL))
     out = tracker.step(make_batch(T0, [det(2.0, 2.0)]))
     assert [(t.id, t.confirmed) for t in out.tracks] == [(1, False)]
     assert (out.tracks[0].x, out.tracks[0].y) == (2.0, 2.0)
@@ -56,13 +61,13 @@ def _step_still(
 
 @pytest.mark.parametrize("n", [1, 3, 5], ids=["n1", "n3", "n5"])
 def test_confirmation_after_detections_to_validate_confident_hits(n: int) -> None:
-    tracker = build_tracker(TrackerConfig(detections_to_validate=n))
+    tracker = build_tracker(TrackerConfig(detections_to_validate=n, **STILL))
     for k in range(n):
         out = tracker.step(make_batch(T0 + k * FRAME, [det(2.0, 2.0)], seq=k))
         assert [t.id for t in out.tracks] == ([1] if k == n - 1 else [])
         assert tracker.table.confirmed.tolist() == [k == n - 1]
     # low-confidence hits do not count towards confirmation
-    tracker = build_tracker(TrackerConfig(detections_to_validate=n))
+    tracker = build_tracker(TrackerConfig(detections_to_validate=n, **STILL))
     tracker.step(make_batch(T0, [det(2.0, 2.0)]))
     for k in range(1, 2 * n):
         tracker.step(make_batch(T0 + k * FRAME, [det(2.0, 2.0, conf=0.3)], seq=k))
@@ -71,7 +76,9 @@ def test_confirmation_after_detections_to_validate_confident_hits(n: int) -> Non
 
 
 def test_unconfirmed_track_is_deleted_after_sec_before_fake() -> None:
-    cfg = TrackerConfig(sec_before_fake=1.5, detections_to_validate=3, tentative_timeout_s=10.0)
+    cfg = TrackerConfig(
+        sec_before_fake=1.5, detections_to_validate=3, tentative_timeout_s=10.0, **STILL
+    )
     tracker = build_tracker(cfg)
     tracker.step(make_batch(T0, [det(2.0, 2.0)]))
     tracker.step(make_batch(T0 + 0.5, [det(2.0, 2.0)]))  # second hit, still tentative
@@ -82,7 +89,7 @@ def test_unconfirmed_track_is_deleted_after_sec_before_fake() -> None:
 
 
 def test_tentative_track_needs_its_hits_close_together() -> None:
-    cfg = TrackerConfig(detections_to_validate=3, tentative_timeout_s=0.5)
+    cfg = TrackerConfig(detections_to_validate=3, tentative_timeout_s=0.5, **STILL)
     tracker = build_tracker(cfg)
     tracker.step(make_batch(T0, [det(2.0, 2.0)]))
     tracker.step(make_batch(T0 + 0.4, [det(2.0, 2.0)]))  # second hit within the timeout
@@ -97,7 +104,7 @@ def test_tentative_track_needs_its_hits_close_together() -> None:
 
 @pytest.mark.parametrize("old", [1.0, 3.0], ids=["1s", "3s"])
 def test_confirmed_track_is_deleted_after_sec_before_old(old: float) -> None:
-    tracker = build_tracker(TrackerConfig(sec_before_old=old))
+    tracker = build_tracker(TrackerConfig(sec_before_old=old, **STILL))
     last = feed_still(tracker, (2.0, 2.0), 4)
     assert tracker.table.confirmed.tolist() == [True]
     t = last
@@ -109,7 +116,7 @@ def test_confirmed_track_is_deleted_after_sec_before_old(old: float) -> None:
 
 
 def test_unseen_confirmed_track_is_kept_but_not_published() -> None:
-    tracker = build_tracker(TrackerConfig(publish_unseen_s=0.5, sec_before_old=3.0))
+    tracker = build_tracker(TrackerConfig(publish_unseen_s=0.5, sec_before_old=3.0, **STILL))
     last = feed_still(tracker, (2.0, 2.0), 4)
     assert [t.id for t in tracker.step(make_batch(last + 0.4)).tracks] == [1]
     out = tracker.step(make_batch(last + 0.6))
@@ -120,7 +127,7 @@ def test_unseen_confirmed_track_is_kept_but_not_published() -> None:
 
 
 def test_low_confidence_detections_update_but_do_not_keep_alive() -> None:
-    cfg = TrackerConfig(sec_before_old=2.0, min_confidence_initialization=0.5)
+    cfg = TrackerConfig(sec_before_old=2.0, min_confidence_initialization=0.5, **STILL)
     tracker = build_tracker(cfg)
     last = feed_still(tracker, (2.0, 2.0), 4)
     hits = tracker.table.hits.tolist()
@@ -152,7 +159,7 @@ def test_low_confidence_detections_update_but_do_not_keep_alive() -> None:
 
 
 def test_detections_below_min_confidence_detections_are_ignored() -> None:
-    tracker = build_tracker(TrackerConfig(min_confidence_detections=0.2))
+    tracker = build_tracker(TrackerConfig(min_confidence_detections=0.2, **STILL))
     last = feed_still(tracker, (2.0, 2.0), 4)
     x0 = tracker.table.x.copy()
     probe = copy.deepcopy(tracker)
@@ -165,7 +172,7 @@ def test_detections_below_min_confidence_detections_are_ignored() -> None:
 @pytest.mark.parametrize("conf", [0.3, 0.9], ids=["weak-split", "confident-split"])
 def test_second_blob_inside_the_gate_never_starts_a_track(conf: float) -> None:
     """A split blob (or a second sensor's duplicate) in the same batch as the person."""
-    tracker = build_tracker(TrackerConfig())
+    tracker = build_tracker(TrackerConfig(**STILL))
     last = feed_still(tracker, (2.0, 2.0), 4)
     out = tracker.step(make_batch(last + FRAME, [det(2.0, 2.0), det(2.15, 2.05, conf=conf)]))
     assert out.alive_ids == (1,)
@@ -176,7 +183,7 @@ def test_second_blob_inside_the_gate_never_starts_a_track(conf: float) -> None:
 
 
 def test_ids_are_never_reused_and_alive_ids_include_tentative() -> None:
-    tracker = build_tracker(TrackerConfig(sec_before_old=1.0, sec_before_fake=1.0))
+    tracker = build_tracker(TrackerConfig(sec_before_old=1.0, sec_before_fake=1.0, **STILL))
     last = feed_still(tracker, (2.0, 2.0), 3)
     out = tracker.step(make_batch(last + FRAME, [det(2.0, 2.0), det(5.0, 5.0)]))
     assert [t.id for t in out.tracks] == [1]
@@ -193,7 +200,7 @@ def test_ids_are_never_reused_and_alive_ids_include_tentative() -> None:
 
 
 def test_track_fields_of_a_walker() -> None:
-    tracker = build_tracker(TrackerConfig())
+    tracker = build_tracker(TrackerConfig(**STILL))
     out = None
     for k in range(60):
         t = T0 + k * FRAME

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from openptrack_py.config import TrackerConfig
 from openptrack_py.tracking import (
@@ -70,7 +71,7 @@ def _admission_radius(tracker: Tracker) -> float:
 
 
 def test_gate_widens_with_time_unseen() -> None:
-    tracker = build_tracker(TrackerConfig())
+    tracker = build_tracker(TrackerConfig(confirm_min_displacement_m=0.0, confirm_min_age_s=0.0))
     last = feed_still(tracker, (3.0, 2.0), 6)
     assert tracker.table.confirmed.tolist() == [True]
     r_noise = PositionMeasurement(0.08, 0.002).noise(np.array([3.0]))[0]
@@ -94,9 +95,15 @@ def test_gate_widens_with_time_unseen() -> None:
     # a detection admitted after 1 s unseen is outside the gate right after an update
     r_1s = radii[unseen.index(1.0)]
     assert r_1s > 3 * radii[0]
-    started = fresh.counters["tracks_started"]
-    hits = int(fresh.table.hits[0])
-    centre = fresh.table.x[0, 0:2]
-    fresh.step(make_batch(fresh.time, [det(centre[0] + 0.9 * r_1s, centre[1])], seq=70))
-    assert int(fresh.table.hits[0]) == hits
-    assert fresh.counters["tracks_started"] == started + 1  # it starts a track of its own
+    # ... but it could still be that person: inside the wider birth gate, it starts nothing
+    s_fresh = fresh.table.cov[0, 0:2, 0:2] + r_noise
+    birth = math.sqrt(chi2.ppf(0.9999, 2) / np.linalg.inv(s_fresh)[0, 0])
+    assert radii[0] < birth < 0.9 * r_1s
+    for distance, starts in ((0.5 * (radii[0] + birth), 0), (1.2 * birth, 1)):
+        probe = copy.deepcopy(fresh)
+        started = probe.counters["tracks_started"]
+        hits = int(probe.table.hits[0])
+        centre = probe.table.x[0, 0:2]
+        probe.step(make_batch(probe.time, [det(centre[0] + distance, centre[1])], seq=70))
+        assert int(probe.table.hits[0]) == hits
+        assert probe.counters["tracks_started"] == started + starts

@@ -16,8 +16,10 @@ from openptrack_py.tracking import (
     IdentityModel,
     Initiator,
     MeasurementModel,
+    Merger,
     MotionModel,
     NullIdentity,
+    SensorModel,
     Stateful,
     TrackingPipeline,
     build_tracker,
@@ -50,10 +52,13 @@ def test_stub_roles_satisfy_the_role_protocols(stub_roles: dict[str, object]) ->
         "associator": Associator,
         "initiator": Initiator,
         "deleter": Deleter,
+        "sensors": SensorModel,
+        "merger": Merger,
     }
     for name, role in stub_roles.items():
         for member in ("fx", "noise", "hx", "pair_measurements", "position_noise", "gate",
-                       "associate", "initiate", "confirm", "delete"):  # fmt: skip
+                       "associate", "initiate", "confirm", "delete", "correct", "noise_scale",
+                       "covers", "learn", "observe", "merge"):  # fmt: skip
             if hasattr(protocols[name], member):
                 assert callable(getattr(role, member)), (name, member)
 
@@ -61,7 +66,9 @@ def test_stub_roles_satisfy_the_role_protocols(stub_roles: dict[str, object]) ->
 def test_default_roles_are_the_configured_ones() -> None:
     tracker = build_tracker()
     assert isinstance(tracker.identity, NullIdentity)
-    assert not any(isinstance(role, Stateful) for role in tracker.roles)
+    # what is learned about sensors, and the pairs waiting to merge, survive replays
+    stateful = [role for role in tracker.roles if isinstance(role, Stateful)]
+    assert stateful == [tracker.sensors, tracker.merger]
     identity: IdentityModel = tracker.identity
     assert identity.annotate([]) == []
 

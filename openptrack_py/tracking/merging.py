@@ -1,0 +1,127 @@
+"""Merging two confirmed tracks that follow one person.
+
+Whatever care birth takes, a person can end up with two confirmed tracks (two sensors
+whose calibrations disagree at a camera boundary, a burst of outliers). Left alone, the
+two share that person's detections and live forever: OpenPTrack's best-known failure.
+:class:`TrackMerger` merges them, keeping the older id, when they have stayed within
+``distance_m`` of each other for ``after_s``, moving alike and both being updated, and no
+single sensor frame has detected both of them at once in the last ``distinct_s`` (one
+sensor seeing two blobs in one frame is proof of two people: two people walking side by
+side are never merged).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from openptrack_py.tracking.state import TrackTable
+
+
+class TrackMerger:
+    """Finds pairs of confirmed tracks that are one person.
+
+    Parameters
+    ----------
+    distance_m : float
+        Largest distance between two tracks of one person.
+    after_s : float
+        How long they must stay that close (0 disables merging).
+    max_speed_difference_mps : float
+        Largest difference of their velocities.
+    distinct_s : float
+        A pair detected in one sensor frame is two people for this long.
+    fresh_s : float
+        Both tracks must have had a detection this recently.
+    """
+
+    def __init__(
+        self,
+        distance_m: float = 0.35,
+        after_s: float = 0.5,
+        max_speed_difference_mps: float = 0.6,
+        distinct_s: float = 5.0,
+        fresh_s: float = 0.3,
+    ) -> None:
+        self.distance_m = distance_m
+        self.after_s = after_s
+        self.max_speed_difference_mps = max_speed_difference_mps
+        self.distinct_s = distinct_s
+        self.fresh_s = fresh_s
+        self._close_since: dict[tuple[int, int], float] = {}
+        self._distinct: dict[tuple[int, int], float] = {}
+
+    def snapshot(self) -> tuple[dict[tuple[int, int], float], dict[tuple[int, int], float]]:
+        """Pair timers (independent copies)."""
+        return dict(self._close_since), dict(self._distinct)
+
+    def restore(
+        self, state: tuple[dict[tuple[int, int], float], dict[tuple[int, int], float]]
+    ) -> None:
+        """Return to a snapshot."""
+        self._close_since, self._distinct = dict(state[0]), dict(state[1])
+
+    def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+        """Tracks ``rows`` were detected in one sensor frame: close pairs are distinct."""
+        if len(rows) < 2 or self.after_s <= 0:
+            return
+        xy = table.x[rows, 0:2]
+        gap = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
+        reach = 2.0 * self.distance_m
+        for i, j in zip(*np.nonzero(np.triu(gap <= reach, k=1)), strict=True):
+            a, b = sorted((int(table.ids[rows[i]]), int(table.ids[rows[j]])))
+            self._distinct[(a, b)] = t
+
+    def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
+        """Pairs ``(keep_row, drop_row)`` to merge now; each row in at most one pair."""
+        if self.after_s <= 0:
+            return []
+        rows = np.flatnonzero(table.confirmed & (t - table.last_seen <= self.fresh_s))
+        close = self._close_pairs(table, rows)
+        self._close_since = {p: s for p, s in self._close_since.items() if p in close}
+        self._distinct = {p: s for p, s in self._distinct.items() if t - s < self.distinct_s}
+        out: list[tuple[int, int]] = []
+        used: set[int] = set()
+        for pair, (ra, rb, _gap) in sorted(close.items(), key=lambda kv: kv[1][2]):
+            if pair in self._distinct:
+                self._close_since.pop(pair, None)
+                continue
+            since = self._close_since.setdefault(pair, t)
+            if t - since < self.after_s or ra in used or rb in used:
+                continue
+            older_first = (table.first_seen[ra], table.ids[ra]) <= (
+                table.first_seen[rb],
+                table.ids[rb],
+            )
+            out.append((ra, rb) if older_first else (rb, ra))
+            used.update((ra, rb))
+            self._close_since.pop(pair, None)
+        return out
+
+    def _close_pairs(
+        self, table: TrackTable, rows: np.ndarray
+    ) -> dict[tuple[int, int], tuple[int, int, float]]:
+        """Pairs of ``rows`` close in position and velocity, by (lower id, higher id)."""
+        if len(rows) < 2:
+            return {}
+        x = table.x[rows]
+        gap = np.hypot(x[:, None, 0] - x[None, :, 0], x[:, None, 1] - x[None, :, 1])
+        dv = np.hypot(x[:, None, 2] - x[None, :, 2], x[:, None, 3] - x[None, :, 3])
+        near = np.triu((gap <= self.distance_m) & (dv <= self.max_speed_difference_mps), k=1)
+        out = {}
+        for i, j in zip(*np.nonzero(near), strict=True):
+            ra, rb = int(rows[i]), int(rows[j])
+            a, b = int(table.ids[ra]), int(table.ids[rb])
+            key = (a, b) if a < b else (b, a)
+            out[key] = (ra, rb, float(gap[i, j]))
+        return out
+
+
+class NoMerging:
+    """Never merge tracks."""
+
+    def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+        """Nothing to remember."""
+
+    def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
+        """No pairs."""
+        return []
