@@ -1,0 +1,83 @@
+"""Two confirmed tracks on one person are merged into the older; two people never are."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from openptrack_py.config import TrackerConfig
+from openptrack_py.messages.detection import Detection, DetectionBatch
+from openptrack_py.tracking import TrackMerger, TrackTable, build_tracker
+from tests.tracking.helpers import FRAME, T0
+
+
+def _table(xy: list[tuple[float, float]], first_seen: list[float]) -> TrackTable:
+    n = len(xy)
+    table = TrackTable()
+    table.ids = np.arange(1, n + 1)
+    table.x = np.array([(x, y, 1.0, 0.0) for x, y in xy])
+    table.confirmed = np.ones(n, dtype=bool)
+    table.first_seen = np.array(first_seen)
+    table.last_seen = np.full(n, 1e9)  # detected "now" at every query time
+    return table
+
+
+def test_close_tracks_merge_into_the_older_after_a_while() -> None:
+    merger = TrackMerger(distance_m=0.35, after_s=0.5)
+    table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
+    assert merger.merge(table, 0.0) == []
+    assert merger.merge(table, 0.3) == []
+    assert merger.merge(table, 0.6) == [(0, 1)]
+
+
+def test_tracks_seen_in_one_frame_are_two_people() -> None:
+    merger = TrackMerger(distance_m=0.35, after_s=0.5)
+    table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
+    for t in np.arange(0.0, 2.0, 0.1):
+        merger.observe(table, np.array([0, 1]), t)
+        assert merger.merge(table, t) == []
+
+
+def test_far_or_differently_moving_tracks_never_merge() -> None:
+    merger = TrackMerger(distance_m=0.35, after_s=0.5)
+    table = _table([(1.0, 1.0), (1.6, 1.0)], first_seen=[0.0, 0.0])
+    assert all(merger.merge(table, t) == [] for t in np.arange(0.0, 2.0, 0.1))
+    table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[0.0, 0.0])
+    table.x[1, 2] = -0.5  # crossing: opposite directions
+    assert all(merger.merge(table, t) == [] for t in np.arange(0.0, 2.0, 0.1))
+
+
+def _det(x: float, y: float) -> Detection:
+    return Detection(x=x, y=y, z=1.0, height=1.7, confidence=0.9, distance=3.0)
+
+
+def test_a_duplicate_track_is_merged_and_the_older_id_kept() -> None:
+    """Sensor b starts 0.6 m off (a bad calibration), so it starts a second track."""
+    tracker = build_tracker(TrackerConfig(estimate_bias=False, adaptive_noise=False))
+    offset = 0.6
+    ids_seen = []
+    for k in range(int(12 / FRAME)):
+        t = k * FRAME
+        x = 1.0 + 0.5 * t
+        tracker.step(DetectionBatch("a", k, T0 + t, "world", (_det(x, 2.0),)))
+        # b's offset shrinks to 0.3 m after 4 s: each sensor keeps feeding its own track,
+        # both of them following one person
+        off = offset if t < 4.0 else 0.3
+        out = tracker.step(DetectionBatch("b", k, T0 + t + 0.01, "world", (_det(x + off, 2.0),)))
+        ids_seen.append(sorted(tr.id for tr in out.tracks if tr.confirmed))
+    assert [1, 2] in ids_seen  # two tracks while the sensors disagree
+    assert ids_seen[-1] == [1]  # one, the older, once they follow one person
+    assert tracker.counters["tracks_merged"] == 1
+    # merged within a second of coming together (not left to starve for 3 s)
+    assert ids_seen[int(5.2 / FRAME)] == [1]
+
+
+def test_two_people_side_by_side_keep_two_tracks() -> None:
+    tracker = build_tracker(TrackerConfig())
+    for k in range(int(20 / FRAME)):
+        t = k * FRAME
+        x = 1.0 + 0.4 * t
+        for i, sensor in enumerate("ab"):
+            dets = (_det(x, 2.0), _det(x, 2.45))
+            out = tracker.step(DetectionBatch(sensor, k, T0 + t + 0.01 * i, "world", dets))
+    assert sorted(tr.id for tr in out.tracks if tr.confirmed) == [1, 2]
+    assert tracker.counters["tracks_merged"] == 0

@@ -1,0 +1,113 @@
+"""What the tracker learns about each sensor: noise scale, bias, coverage."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from openptrack_py.config import TrackerConfig
+from openptrack_py.messages.detection import Detection, DetectionBatch
+from openptrack_py.tracking import OnlineSensorModel, build_tracker
+from openptrack_py.tracking.sensor_model import truncated_scale
+from tests.tracking.helpers import FRAME, T0
+
+GATE = float(chi2.ppf(0.95, 2))
+
+
+@pytest.mark.parametrize("scale", [0.5, 1.0, 4.0, 9.0])
+def test_truncated_scale_recovers_the_scale_of_gated_samples(scale: float) -> None:
+    rng = np.random.default_rng(int(scale * 10))
+    # gated at the scale the samples will be found to have: the fixed point
+    u = scale * rng.chisquare(2, 20_000)
+    u = u[u <= GATE * scale][:2000]
+    got = truncated_scale(u, np.full(len(u), GATE * scale), 2, (0.25, 25.0))
+    assert got == pytest.approx(scale, rel=0.1)
+
+
+def test_truncated_scale_is_bounded() -> None:
+    u = np.full(100, 5.9)
+    assert truncated_scale(u, np.full(100, GATE), 2, (0.5, 2.0)) == pytest.approx(2.0, rel=1e-3)
+    assert truncated_scale(np.full(100, 1e-6), np.full(100, GATE), 2, (0.5, 2.0)) == pytest.approx(
+        0.5, rel=1e-3
+    )
+
+
+def _walk(tracker, noise, offset, seconds, start_s=0.0):
+    """One person walking a circle, seen by every sensor of ``noise`` at 30 Hz."""
+    rng = np.random.default_rng(7 + int(start_s))
+    for k in range(int(start_s / FRAME), int((start_s + seconds) / FRAME)):
+        for i, (sensor, sigma) in enumerate(noise.items()):
+            t = k * FRAME + 0.01 * i
+            xy = np.array([3 + 2 * np.cos(0.3 * t), 3 + 2 * np.sin(0.3 * t)])
+            xy = xy + offset.get(sensor, 0.0) + rng.normal(0, sigma, 2)
+            d = Detection(x=xy[0], y=xy[1], z=1.0, height=1.7, confidence=0.9, distance=3.0)
+            tracker.step(DetectionBatch(sensor, k, T0 + t, "world", (d,)))
+
+
+def test_a_noisier_sensor_gets_a_larger_noise_scale() -> None:
+    tracker = build_tracker(TrackerConfig())
+    # the configured model says 0.08 + 0.002 * 3**2 = 0.098 m at 3 m
+    _walk(tracker, {"quiet": 0.05, "loud": 0.25}, {}, 15.0)
+    started = tracker.counters["tracks_started"]
+    _walk(tracker, {"quiet": 0.05, "loud": 0.25}, {}, 45.0, start_s=15.0)
+    quiet, loud = tracker.sensors.noise_scale("quiet"), tracker.sensors.noise_scale("loud")
+    # true variances: (0.05 / 0.098)^2 = 0.26 and (0.25 / 0.098)^2 = 6.5 times the model
+    assert 0.15 < quiet < 0.5
+    assert 3.0 < loud < 15.0
+    # once learned, the loud sensor's detections no longer start tracks
+    assert tracker.counters["tracks_started"] == started
+
+
+def test_a_sensor_offset_against_the_others_is_learned_and_removed() -> None:
+    tracker = build_tracker(TrackerConfig())
+    shift = np.array([0.15, -0.10])
+    _walk(tracker, {"a": 0.05, "b": 0.05, "c": 0.05}, {"c": shift}, 60.0)
+    biases = {s: tracker.sensors.bias(s) for s in "abc"}
+    # relative offsets are what is observable: c against the mean of a and b
+    relative = biases["c"] - (biases["a"] + biases["b"]) / 2
+    np.testing.assert_allclose(relative, shift, atol=0.03)
+    # the gauge: the sample-weighted mean of the biases stays at zero
+    assert np.hypot(*sum(biases.values())) < 0.05
+
+
+def test_one_sensor_alone_learns_no_bias() -> None:
+    tracker = build_tracker(TrackerConfig())
+    _walk(tracker, {"only": 0.05}, {"only": np.array([0.3, 0.0])}, 20.0)
+    np.testing.assert_allclose(tracker.sensors.bias("only"), 0.0)
+
+
+def test_bias_and_scale_are_bounded() -> None:
+    model = OnlineSensorModel(max_bias_m=0.2, scale_bounds=(0.5, 4.0), min_samples=10)
+    for _ in range(200):
+        model.learn("s", np.array([[1.0, 0.0]] * 5), np.full(5, 5.9), GATE, np.ones(5, bool))
+        model.learn("t", np.zeros((5, 2)), np.full(5, 0.1), GATE, np.ones(5, bool))
+    assert np.hypot(*model.bias("s")) <= 0.2 + 1e-9
+    assert model.noise_scale("s") <= 4.0
+
+
+def test_coverage_is_where_a_sensor_reported_something() -> None:
+    model = OnlineSensorModel()
+    tracker = build_tracker(TrackerConfig())
+    tracker.sensors = model
+    d = Detection(x=1.2, y=3.7, z=1.0, height=1.7, confidence=0.9, distance=3.0)
+    tracker.step(DetectionBatch("s", 0, T0, "world", (d,)))
+    assert model.covers("s", np.array([[1.0, 3.6], [4.0, 4.0]])).tolist() == [True, False]
+    assert model.covers("other", np.array([[1.0, 3.6]])).tolist() == [False]
+
+
+def test_learned_state_survives_a_late_batch_replay() -> None:
+    late = build_tracker(TrackerConfig())
+    ontime = build_tracker(TrackerConfig())
+    _walk(late, {"a": 0.05, "b": 0.15}, {"b": np.array([0.1, 0.0])}, 10.0)
+    _walk(ontime, {"a": 0.05, "b": 0.15}, {"b": np.array([0.1, 0.0])}, 10.0)
+    t = late.time
+    d = Detection(x=3.0, y=3.0, z=1.0, height=1.7, confidence=0.9, distance=3.0)
+    extra = DetectionBatch("b", 10_000, t - 0.5, "world", (d,))
+    late.step(DetectionBatch("a", 10_001, t + FRAME, "world", ()))
+    late.step(extra)  # arrives late: replayed
+    ontime.step(extra)
+    ontime.step(DetectionBatch("a", 10_001, t + FRAME, "world", ()))
+    assert late.counters["late_applied"] == 1
+    assert late.sensors.noise_scale("b") == ontime.sensors.noise_scale("b")
+    np.testing.assert_array_equal(late.sensors.bias("b"), ontime.sensors.bias("b"))
