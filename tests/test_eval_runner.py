@@ -10,7 +10,7 @@ import pytest
 from openptrack_py.eval.runner import Hypotheses, TrackerFeed, TruthFeed, evaluate
 from openptrack_py.messages import DetectionBatch, GroundTruthFrame, Track, TrackBatch
 from openptrack_py.sim import DEFAULT_START_TIME, build_scenario
-from openptrack_py.sim.simulator import SensorFrame
+from openptrack_py.sim.simulator import SensorFrame, TruthFrame
 from openptrack_py.tracking import TrackingPipeline
 
 
@@ -26,7 +26,7 @@ def crowd():
 def test_ground_truth_scores_perfectly(crowd) -> None:
     m = evaluate(crowd, _truth()).metrics
     assert (m.mota, m.idf1, m.motp) == (1.0, 1.0, 0.0)
-    assert m.id_switches == m.fp == m.fn == m.fragmentations == 0
+    assert m.id_switches == m.fp == m.fn == m.fragmentations == m.duplicates == 0
     assert m.frames == 601 and m.gt_tracks == 7
 
 
@@ -42,6 +42,38 @@ def test_one_relabelled_person_is_exactly_one_id_switch(crowd) -> None:
 def test_two_people_exchanging_ids_are_two_switches(crowd) -> None:
     m = evaluate(crowd, _truth(swap=(1, 2, 5.0))).metrics
     assert m.id_switches == 2 and m.fp == m.fn == 0
+
+
+@dataclass
+class Doubled:
+    """The truth, with a second track following one person for a while."""
+
+    person: int
+    start: float
+    end: float
+    truth: TruthFeed = field(default_factory=lambda: _truth())
+
+    def on_sensor_frame(self, frame: SensorFrame) -> None:
+        """Sensors are ignored."""
+
+    def on_truth_frame(self, frame: TruthFrame) -> None:
+        self.truth.on_truth_frame(frame)
+
+    def hypotheses_at(self, t: float) -> Hypotheses | None:
+        hyp = self.truth.hypotheses_at(t)
+        assert hyp is not None
+        if not self.start <= t - DEFAULT_START_TIME <= self.end:
+            return hyp
+        (row,) = np.flatnonzero(hyp.ids == self.person)
+        twin = hyp.xy[row] + [0.15, 0.1]
+        return Hypotheses(np.r_[hyp.ids, 99], np.vstack([hyp.xy, twin]))
+
+
+def test_a_second_track_on_one_person_is_one_duplicate_with_its_duration(crowd) -> None:
+    m = evaluate(crowd, Doubled(person=3, start=5.0, end=8.0)).metrics
+    assert m.duplicates == 1 and m.duplicate_s == pytest.approx(3.0, abs=1e-6)
+    assert m.fp == 91 and m.id_switches == 0
+    assert evaluate(crowd, Doubled(person=3, start=5.0, end=5.9)).metrics.duplicates == 0
 
 
 def test_frames_without_output_count_every_object_as_missed(crowd) -> None:

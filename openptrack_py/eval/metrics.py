@@ -19,6 +19,14 @@ A pair made in step 2 is an identity switch when the object had already been mat
 before, in any earlier frame, and its most recent hypothesis differs. A hypothesis that
 moves from one object to another (a "transfer" in py-motmetrics) is not a switch.
 
+A *duplicate* is a second track on one person: in a frame, an unmatched hypothesis
+within the threshold of a matched object, and nearer to it than to any unmatched object.
+Duplicates are grouped into episodes, a maximal run of frames in which the same
+hypothesis duplicates the same object (a gap of up to ``duplicate_gap_s`` between two
+such frames does not end it); an episode counts when it lasts (first frame to last)
+more than ``duplicate_min_s``: a tracker that briefly holds two tracks on one person
+while it decides is not punished, one that keeps following a person twice is.
+
 The identity measures IDF1, IDP and IDR [2]_ come from a global one-to-one assignment of
 ground-truth trajectories to hypothesis trajectories that maximises the number of frames
 in which an assigned pair is within the threshold (the identity true positives, IDTP).
@@ -66,12 +74,17 @@ from openptrack_py.eval.matching import (
     pairwise_distances,
 )
 
-__all__ = ["MotAccumulator", "MotMetrics", "distance_matrix"]
+__all__ = ["DUPLICATE_GAP_S", "DUPLICATE_MIN_S", "MotAccumulator", "MotMetrics", "distance_matrix"]
 
 # A ground-truth track matched in at least this fraction of its frames is mostly tracked.
 _MOSTLY_TRACKED_RATIO = 0.8
 # A ground-truth track matched in less than this fraction of its frames is mostly lost.
 _MOSTLY_LOST_RATIO = 0.2
+
+DUPLICATE_MIN_S = 1.0
+"""A duplicate episode counts when it lasts longer than this, seconds."""
+DUPLICATE_GAP_S = 0.2
+"""A duplicate episode survives gaps up to this long between two of its frames, seconds."""
 
 
 @dataclass(frozen=True)
@@ -122,6 +135,11 @@ class MotMetrics:
         Ground-truth ids matched in at least 20 % and less than 80 % of their frames.
     mostly_lost : int
         Ground-truth ids matched in less than 20 % of their frames.
+    duplicates : int
+        Duplicate episodes (a second hypothesis following an object that is already
+        matched) that last longer than ``duplicate_min_s``.
+    duplicate_s : float
+        Total duration of those episodes, seconds.
     """
 
     mota: float
@@ -144,6 +162,8 @@ class MotMetrics:
     mostly_tracked: int
     partially_tracked: int
     mostly_lost: int
+    duplicates: int
+    duplicate_s: float
 
     def to_dict(self) -> dict[str, float | int | None]:
         """Return the metrics as a JSON-friendly dictionary.
@@ -172,11 +192,19 @@ class MotAccumulator:
     max_distance_m : float, optional
         Largest Euclidean distance in metres at which a ground-truth object and a
         hypothesis may correspond. Must be finite and > 0. Default 0.5.
+    duplicate_min_s : float, optional
+        A duplicate episode counts when it lasts longer than this, seconds. Default 1.0.
+    duplicate_gap_s : float, optional
+        Longest gap between two frames of one duplicate episode, seconds. Default 0.2.
+    frame_rate_hz : float, optional
+        Frames added without a ``time_s`` are taken to follow each other at this rate
+        (only duplicate episodes use time). Default 30.
 
     Raises
     ------
     ValueError
-        If ``max_distance_m`` is not a finite number > 0.
+        If ``max_distance_m`` is not a finite number > 0, or a duration or the rate is
+        negative or not finite.
 
     Notes
     -----
@@ -193,8 +221,20 @@ class MotAccumulator:
     1.0
     """
 
-    def __init__(self, max_distance_m: float = 0.5) -> None:
+    def __init__(
+        self,
+        max_distance_m: float = 0.5,
+        *,
+        duplicate_min_s: float = DUPLICATE_MIN_S,
+        duplicate_gap_s: float = DUPLICATE_GAP_S,
+        frame_rate_hz: float = 30.0,
+    ) -> None:
         self._max_distance_m = check_max_distance(max_distance_m)
+        self._duplicate_min_s = _check_seconds("duplicate_min_s", duplicate_min_s)
+        self._duplicate_gap_s = _check_seconds("duplicate_gap_s", duplicate_gap_s)
+        if not (math.isfinite(frame_rate_hz) and frame_rate_hz > 0.0):
+            raise ValueError(f"frame_rate_hz must be a finite number > 0; got {frame_rate_hz!r}")
+        self._frame_period_s = 1.0 / frame_rate_hz
         # ground-truth id -> hypothesis id of its most recent match (any earlier frame)
         self._last_hyp: dict[int, int] = {}
         self._frames = 0
@@ -208,6 +248,10 @@ class MotAccumulator:
         self._hyp_ids: list[NDArray[np.int64]] = []
         self._pair_gt: list[NDArray[np.int64]] = []
         self._pair_hyp: list[NDArray[np.int64]] = []
+        # one entry per (frame, duplicating hypothesis): frame time, hypothesis, object
+        self._dup_time: list[float] = []
+        self._dup_hyp: list[int] = []
+        self._dup_gt: list[int] = []
 
     @property
     def frames(self) -> int:
@@ -220,6 +264,7 @@ class MotAccumulator:
         gt_xy: ArrayLike,
         hyp_ids: ArrayLike,
         hyp_xy: ArrayLike,
+        time_s: float | None = None,
     ) -> None:
         """Add one frame of ground truth and tracker output.
 
@@ -234,6 +279,10 @@ class MotAccumulator:
         hyp_xy : array_like, shape (m, 2) or (m, 3)
             Hypothesis positions in metres; same number of coordinates as ``gt_xy`` when
             both are non-empty.
+        time_s : float, optional
+            Time of the frame, seconds (any origin, increasing). Without it the frame
+            comes one period of ``frame_rate_hz`` after the previous one. Give it for
+            every frame or for none.
 
         Raises
         ------
@@ -255,9 +304,11 @@ class MotAccumulator:
             dist[dist > self._max_distance_m] = np.inf
         else:
             dist = np.empty((gt.size, hyp.size), dtype=np.float64)
-        self._add_frame(gt, hyp, dist)
+        self._add_frame(gt, hyp, dist, time_s)
 
-    def update_missing_frame(self, gt_ids: ArrayLike, gt_xy: ArrayLike) -> None:
+    def update_missing_frame(
+        self, gt_ids: ArrayLike, gt_xy: ArrayLike, time_s: float | None = None
+    ) -> None:
         """Add a frame for which the tracker produced no output at all.
 
         Every ground-truth object present is a miss; this is the same as :meth:`update`
@@ -269,6 +320,8 @@ class MotAccumulator:
             Ground-truth ids present in the frame, unique within the frame.
         gt_xy : array_like, shape (n, 2) or (n, 3)
             Ground-truth positions in metres (validated, not otherwise used).
+        time_s : float, optional
+            Time of the frame, seconds (see :meth:`update`).
 
         Raises
         ------
@@ -277,10 +330,14 @@ class MotAccumulator:
         """
         gt = as_ids(gt_ids, "gt_ids")
         as_points(gt_xy, "gt_xy", gt.size, "gt_ids")
-        self._add_frame(gt, EMPTY_IDS, np.empty((gt.size, 0), dtype=np.float64))
+        self._add_frame(gt, EMPTY_IDS, np.empty((gt.size, 0), dtype=np.float64), time_s)
 
     def _add_frame(
-        self, gt: NDArray[np.int64], hyp: NDArray[np.int64], dist: NDArray[np.float64]
+        self,
+        gt: NDArray[np.int64],
+        hyp: NDArray[np.int64],
+        dist: NDArray[np.float64],
+        time_s: float | None,
     ) -> None:
         """Match one validated frame and record its events."""
         n, m = dist.shape
@@ -321,6 +378,9 @@ class MotAccumulator:
             vi, vj = np.nonzero(gated)
             self._pair_gt.append(gt[vi])
             self._pair_hyp.append(hyp[vj])
+            if matches and matches < m:
+                t = self._frames * self._frame_period_s if time_s is None else float(time_s)
+                self._find_duplicates(t, gt, hyp, dist, gt_match >= 0, hyp_taken)
         self._frames += 1
         self._matches += matches
         self._distance_sum += matched_distances
@@ -329,6 +389,29 @@ class MotAccumulator:
         self._gt_ids.append(gt)
         self._gt_matched.append(gt_match >= 0)
         self._hyp_ids.append(hyp)
+
+    def _find_duplicates(
+        self,
+        t: float,
+        gt: NDArray[np.int64],
+        hyp: NDArray[np.int64],
+        dist: NDArray[np.float64],
+        gt_matched: NDArray[np.bool_],
+        hyp_taken: NDArray[np.bool_],
+    ) -> None:
+        """Record the unmatched hypotheses that follow an already matched object."""
+        for j in np.flatnonzero(~hyp_taken).tolist():
+            to_matched = np.where(gt_matched, dist[:, j], np.inf)
+            i = int(np.argmin(to_matched))
+            nearest = to_matched[i]
+            if not np.isfinite(nearest):
+                continue
+            to_free = dist[~gt_matched, j]
+            if to_free.size and not nearest < to_free.min():
+                continue
+            self._dup_time.append(t)
+            self._dup_hyp.append(int(hyp[j]))
+            self._dup_gt.append(int(gt[i]))
 
     def compute(self) -> MotMetrics:
         """Compute the metrics over all frames added so far.
@@ -363,6 +446,13 @@ class MotAccumulator:
         pair_hyp = np.concatenate(self._pair_hyp) if self._pair_hyp else EMPTY_IDS
         idtp = identity_true_positives(gt_uniq, gt_frames, hyp_uniq, hyp_frames, pair_gt, pair_hyp)
 
+        duplicates, duplicate_s = _duplicate_episodes(
+            np.asarray(self._dup_time, dtype=np.float64),
+            np.asarray(self._dup_hyp, dtype=np.int64),
+            np.asarray(self._dup_gt, dtype=np.int64),
+            self._duplicate_gap_s,
+            self._duplicate_min_s,
+        )
         matches = self._matches
         errors = self._fn + self._fp + self._switches
         return MotMetrics(
@@ -386,6 +476,8 @@ class MotAccumulator:
             mostly_tracked=mostly_tracked,
             partially_tracked=partially_tracked,
             mostly_lost=mostly_lost,
+            duplicates=duplicates,
+            duplicate_s=duplicate_s,
         )
 
 
@@ -407,6 +499,38 @@ def _count_fragmentations(gt_inv: NDArray[np.intp], matched: NDArray[np.bool_]) 
     last_hit_of = np.repeat(last_hit, np.diff(np.r_[starts, track.size]))
     begins_gap = (track[1:] == track[:-1]) & hit[:-1] & ~hit[1:] & (position[1:] < last_hit_of[1:])
     return int(np.count_nonzero(begins_gap))
+
+
+def _check_seconds(name: str, value: float) -> float:
+    """Validate a duration: a finite number >= 0, returned as a float."""
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ValueError(f"{name} must be a finite number >= 0 (seconds); got {value!r}")
+    return float(value)
+
+
+def _duplicate_episodes(
+    time_s: NDArray[np.float64],
+    hyp: NDArray[np.int64],
+    gt: NDArray[np.int64],
+    gap_s: float,
+    min_s: float,
+) -> tuple[int, float]:
+    """Count the duplicate episodes longer than ``min_s`` and add up their durations.
+
+    One entry per frame in which hypothesis ``hyp[k]`` duplicated object ``gt[k]`` at
+    ``time_s[k]``. An episode is a run of one pair's entries with no gap above
+    ``gap_s``; it lasts from its first entry to its last.
+    """
+    if time_s.size == 0:
+        return 0, 0.0
+    order = np.lexsort((time_s, hyp, gt))
+    t, h, g = time_s[order], hyp[order], gt[order]
+    new = np.r_[True, (g[1:] != g[:-1]) | (h[1:] != h[:-1]) | (np.diff(t) > gap_s)]
+    starts = np.flatnonzero(new)
+    ends = np.r_[starts[1:], t.size] - 1
+    lasted = t[ends] - t[starts]
+    counted = lasted[lasted > min_s]
+    return int(counted.size), float(counted.sum())
 
 
 def _ratio(numerator: float, denominator: float) -> float:
