@@ -2,11 +2,9 @@
 
 ``openptrack eval --ground-truth GT --detections DETS`` runs our tracker on detections
 that did not come from our simulator; ``--tracks TRACKS`` scores another tracker's
-output on the same ground truth. The format is chosen by the extension: ``.csv`` (a
-header row naming the columns, then one row per line; blank lines and lines starting
-with ``#`` are skipped) or ``.jsonl`` / ``.json`` / ``.ndjson`` (one JSON object per
-line with the same keys). Times are seconds with any origin, the same clock in every
-file of one evaluation.
+output on the same ground truth. Files are ``.csv`` with a header row or JSON lines with
+the same keys (:mod:`~openptrack_py.eval.datafiles` reads them); times are seconds with
+any origin, the same clock in every file of one evaluation.
 
 Ground truth: ``time, id, x, y[, covered]``
     Rows of one time are one frame: everyone present then (``id`` an integer, ``x, y``
@@ -32,30 +30,32 @@ Recordings
     ``ground_truth`` messages, its ``detections/<sensor>`` messages (arriving at ``t``)
     and its raw ``tracks`` messages.
 
-Rows must come in time order: ground-truth and track frames strictly increasing,
-detection frames in order of arrival (steps back of up to :data:`MAX_DISORDER_S` are
-taken as arriving with the previous frame) and each sensor's times increasing. Files
-are streamed, never loaded whole. Every error is an :class:`ExternalFileError` naming
-the file, the line and the column.
+Rows come in time order: ground-truth and track frames increasing, detection frames in
+order of arrival (a step back of up to :data:`MAX_DISORDER_S` is taken as arriving with
+the previous frame), each sensor's times increasing. Files are streamed; every error is
+an :class:`ExternalFileError` naming the file, the line and the column.
 """
 
 from __future__ import annotations
 
-import csv
 import heapq
 import math
-import re
 import time
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field, replace
-from itertools import chain
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import orjson
 
-from openptrack_py.errors import ConfigError, WireFormatError
+from openptrack_py.errors import WireFormatError
+from openptrack_py.eval.datafiles import (
+    TIME_BASE_S,
+    ExternalFileError,
+    Recorded,
+    Row,
+    check_order,
+    read_records,
+)
 from openptrack_py.eval.metrics import MotAccumulator
 from openptrack_py.eval.runner import (
     EvalResult,
@@ -72,9 +72,23 @@ from openptrack_py.messages.codec import (
     decode_track_batch,
 )
 from openptrack_py.messages.detection import Detection, DetectionBatch
-from openptrack_py.messages.fields import MAX_ITEMS, MAX_NAME_LEN, NAME_RE
+from openptrack_py.messages.fields import MAX_ITEMS
 from openptrack_py.messages.ground_truth import GroundTruthFrame, PersonState
 from openptrack_py.sim.simulator import SensorFrame, TruthFrame
+
+__all__ = [
+    "DEFAULT_CONFIDENCE",
+    "DEFAULT_DISTANCE_M",
+    "DEFAULT_HEIGHT_M",
+    "MAX_DISORDER_S",
+    "ExternalFileError",
+    "TrackFileFeed",
+    "TrackFrame",
+    "evaluate_files",
+    "read_detections",
+    "read_ground_truth",
+    "read_tracks",
+]
 
 DEFAULT_CONFIDENCE = 1.0
 """Confidence of a detection whose file gives none."""
@@ -84,302 +98,12 @@ DEFAULT_DISTANCE_M = 3.0
 """Distance from the sensor of a detection whose file gives none, metres."""
 MAX_DISORDER_S = 1.0
 """Largest step back in arrival time between two detection frames, seconds."""
-TIME_BASE_S = 1.0e9
-"""Added to every file time, so that times from any origin are valid UNIX stamps."""
-TIME_RANGE_S = (-1.0e8, 1.0e10)
-"""Accepted file times, seconds (a time in milliseconds is out of range)."""
-
-CSV_SUFFIXES = (".csv",)
-JSON_LINES_SUFFIXES = (".jsonl", ".json", ".ndjson")
 
 GROUND_TRUTH_COLUMNS = ("time", "id", "x", "y", "covered")
 DETECTION_COLUMNS = (
-    "time",
-    "sensor",
-    "x",
-    "y",
-    "confidence",
-    "z",
-    "height",
-    "distance",
-    "arrival",
-)
+    "time", "sensor", "x", "y", "confidence", "z", "height", "distance", "arrival"
+)  # fmt: skip
 TRACK_COLUMNS = ("time", "id", "x", "y", "vx", "vy")
-
-_INTEGER_RE = re.compile(r"[+-]?\d+")
-_INT64 = (-(1 << 63), (1 << 63) - 1)
-_RECORDING_KEYS = frozenset({"t", "key", "msg"})
-
-
-class ExternalFileError(ConfigError):
-    """A ground-truth, detection or track file cannot be read.
-
-    The message is ``<path>:<line>: <column>: <what is wrong>`` (line and column when
-    they are known).
-
-    Parameters
-    ----------
-    path : Path
-        The file.
-    line : int or None
-        1-based line number.
-    column : str or None
-        Column (or JSON key) at fault.
-    message : str
-        What is wrong.
-    """
-
-    def __init__(self, path: Path, line: int | None, column: str | None, message: str) -> None:
-        self.path, self.line, self.column = path, line, column
-        where = str(path) if line is None else f"{path}:{line}"
-        super().__init__(f"{where}: {column}: {message}" if column else f"{where}: {message}")
-
-
-# ----------------------------------------------------------------------------- rows
-
-
-@dataclass(frozen=True, slots=True)
-class _Row:
-    """One record of a file: its cells by column (text for CSV, JSON values otherwise)."""
-
-    path: Path
-    line: int
-    cells: dict[str, Any]
-
-    def error(self, column: str | None, message: str) -> ExternalFileError:
-        return ExternalFileError(self.path, self.line, column, message)
-
-    def has(self, column: str) -> bool:
-        return self.cells.get(column) is not None
-
-    def number(self, column: str, default: float | None = None) -> float:
-        """A finite number; ``default`` when the cell is empty (required if ``None``)."""
-        value = self.cells.get(column)
-        if value is None:
-            if default is None:
-                raise self.error(column, "missing (a number is required)")
-            return default
-        if isinstance(value, str):
-            try:
-                number = float(value)
-            except ValueError:
-                raise self.error(column, f"expected a number, got {value!r}") from None
-        elif type(value) in (int, float):
-            number = float(value)
-        else:
-            raise self.error(column, f"expected a number, got {value!r}")
-        if not math.isfinite(number):
-            raise self.error(column, f"expected a finite number, got {value!r}")
-        return number
-
-    def time(self, column: str = "time") -> float:
-        """A time in seconds, shifted by :data:`TIME_BASE_S`."""
-        value = self.number(column)
-        lo, hi = TIME_RANGE_S
-        if not lo <= value <= hi:
-            raise self.error(column, f"expected seconds in [{lo:g}, {hi:g}], got {value!r}")
-        return value + TIME_BASE_S
-
-    def integer(self, column: str) -> int:
-        """A required 64-bit integer."""
-        value = self.cells.get(column)
-        if isinstance(value, str) and _INTEGER_RE.fullmatch(value):
-            value = int(value)
-        if type(value) is not int or not _INT64[0] <= value <= _INT64[1]:
-            raise self.error(column, f"expected an integer, got {value!r}")
-        return value
-
-    def name(self, column: str) -> str:
-        """A required sensor name (``[A-Za-z0-9_.-]``, 1 to 128 characters)."""
-        value = self.cells.get(column)
-        if type(value) is int:
-            value = str(value)
-        if type(value) is not str or not 0 < len(value) <= MAX_NAME_LEN:
-            raise self.error(
-                column, f"expected a name of 1-{MAX_NAME_LEN} characters, got {value!r}"
-            )
-        if not NAME_RE.fullmatch(value):
-            raise self.error(column, f"expected only the characters [A-Za-z0-9_.-], got {value!r}")
-        return value
-
-    def flag(self, column: str, default: bool) -> bool:
-        """``0``/``1`` (or ``true``/``false``); ``default`` when empty."""
-        value = self.cells.get(column)
-        if value is None:
-            return default
-        if isinstance(value, str):
-            value = {"0": False, "1": True, "false": False, "true": True}.get(value.lower(), value)
-        elif type(value) is int and value in (0, 1):
-            value = bool(value)
-        if type(value) is not bool:
-            raise self.error(column, f"expected 0 or 1, got {value!r}")
-        return value
-
-    def nobody(self, columns: tuple[str, ...]) -> bool:
-        """Whether the row marks a frame with nobody (every one of ``columns`` empty).
-
-        Raises
-        ------
-        ExternalFileError
-            If some of the columns are filled and others not.
-        """
-        filled = [c for c in columns if self.has(c)]
-        if filled and len(filled) < len(columns):
-            missing = next(c for c in columns if not self.has(c))
-            raise self.error(missing, f"missing (give all of {', '.join(columns)} or none)")
-        return not filled
-
-
-def _suffix(path: Path) -> str:
-    suffix = path.suffix.lower()
-    if suffix not in CSV_SUFFIXES + JSON_LINES_SUFFIXES:
-        allowed = ", ".join(CSV_SUFFIXES + JSON_LINES_SUFFIXES)
-        raise ExternalFileError(
-            path, None, None, f"unknown format {suffix!r} (allowed: {allowed})"
-        )
-    return suffix
-
-
-def _open(path: Path, mode: str) -> Any:
-    try:
-        return path.open(mode, **({"newline": "", "encoding": "utf-8-sig"} if mode == "r" else {}))
-    except OSError as exc:
-        raise ExternalFileError(path, None, None, f"cannot open ({exc.strerror})") from None
-
-
-def _csv_rows(path: Path, columns: tuple[str, ...], required: tuple[str, ...]) -> Iterator[_Row]:
-    """The rows of a CSV file with a header, as cells by column (empty cells left out)."""
-    with _open(path, "r") as f:
-        reader = csv.reader(f)
-        header: list[str] | None = None
-        try:
-            for cells in reader:
-                if not cells or not "".join(cells).strip() or cells[0].lstrip().startswith("#"):
-                    continue
-                line = reader.line_num
-                if header is None:
-                    header = _header(path, line, [c.strip() for c in cells], columns, required)
-                    continue
-                if len(cells) != len(header):
-                    raise ExternalFileError(
-                        path, line, None, f"expected {len(header)} cells, got {len(cells)}"
-                    )
-                values = {h: v.strip() for h, v in zip(header, cells, strict=True) if v.strip()}
-                yield _Row(path, line, values)
-        except (csv.Error, UnicodeDecodeError) as exc:
-            raise ExternalFileError(
-                path, reader.line_num + 1, None, f"unreadable ({exc})"
-            ) from None
-    if header is None:
-        raise ExternalFileError(path, None, None, "empty (expected a header row)")
-
-
-def _header(
-    path: Path, line: int, names: list[str], columns: tuple[str, ...], required: tuple[str, ...]
-) -> list[str]:
-    for name in names:
-        if name not in columns:
-            raise ExternalFileError(
-                path, line, name, f"unknown column (allowed: {', '.join(columns)})"
-            )
-        if names.count(name) > 1:
-            raise ExternalFileError(path, line, name, "repeated column")
-    for name in required:
-        if name not in names:
-            raise ExternalFileError(path, line, name, "missing column")
-    return names
-
-
-def _json_lines(path: Path) -> Iterator[tuple[int, dict]]:
-    """``(line number, object)`` for every non-blank line of a JSON-lines file."""
-    with _open(path, "rb") as f:
-        for line_no, text in enumerate(f, 1):
-            if not text.strip():
-                continue
-            try:
-                obj = orjson.loads(text)
-            except orjson.JSONDecodeError as exc:
-                raise ExternalFileError(
-                    path, line_no, None, f"not valid JSON ({exc}; expected one object per line)"
-                ) from None
-            if type(obj) is not dict:
-                raise ExternalFileError(path, line_no, None, "expected a JSON object")
-            yield line_no, obj
-
-
-def _records(path: Path, columns: tuple[str, ...], required: tuple[str, ...]) -> _Records:
-    """The records of a file: rows (CSV or JSON lines) or recorder lines."""
-    if _suffix(path) in CSV_SUFFIXES:
-        return _Records(rows=_csv_rows(path, columns, required))
-    lines = _json_lines(path)
-    first = next(lines, None)
-    if first is None:
-        raise ExternalFileError(path, None, None, "empty")
-    if first[1].keys() >= _RECORDING_KEYS:
-        return _Records(recording=_recording(path, chain([first], lines)))
-    return _Records(rows=_json_rows(path, chain([first], lines), columns))
-
-
-@dataclass
-class _Records:
-    rows: Iterator[_Row] | None = None
-    recording: Iterator[_Recorded] | None = None
-
-
-def _json_rows(
-    path: Path, lines: Iterator[tuple[int, dict]], columns: tuple[str, ...]
-) -> Iterator[_Row]:
-    """Rows of JSON objects (a missing key or ``null`` is an empty cell)."""
-    for line, obj in lines:
-        for key in obj:
-            if key not in columns:
-                raise ExternalFileError(
-                    path, line, key, f"unknown key (allowed: {', '.join(columns)})"
-                )
-        yield _Row(path, line, {k: v for k, v in obj.items() if v is not None and v != ""})
-
-
-@dataclass(frozen=True, slots=True)
-class _Recorded:
-    """One line of a recording: receive time, topic, message (as its JSON bytes)."""
-
-    path: Path
-    line: int
-    received: float
-    topic: str
-    payload: bytes
-
-    def decode(self, decoder: Callable[[bytes], Any]) -> Any:
-        try:
-            return decoder(self.payload)
-        except WireFormatError as exc:
-            raise ExternalFileError(self.path, self.line, "msg", str(exc)) from None
-
-
-def _recording(path: Path, lines: Iterator[tuple[int, dict]]) -> Iterator[_Recorded]:
-    for line, obj in lines:
-        if not obj.keys() >= _RECORDING_KEYS:
-            raise ExternalFileError(
-                path, line, None, 'expected a recorder line {"t", "key", "msg"}'
-            )
-        key, received = obj["key"], obj["t"]
-        if type(key) is not str:
-            raise ExternalFileError(path, line, "key", f"expected a string, got {key!r}")
-        row = _Row(path, line, {"t": received})
-        chunks = key.split("/")
-        topic = "/".join(chunks[2:]) if len(chunks) >= 3 and chunks[0] == "opt" else ""
-        yield _Recorded(path, line, row.time("t"), topic, orjson.dumps(obj["msg"]))
-
-
-def _in_order(row: _Row, previous: float | None, now: float, what: str, rule: str) -> None:
-    """Raise unless ``now`` comes after ``previous`` (the time of the previous ``what``)."""
-    if previous is not None and now <= previous:
-        raise row.error(
-            "time",
-            f"{what} at {now - TIME_BASE_S:g} s does not come after the previous one at "
-            f"{previous - TIME_BASE_S:g} s ({rule})",
-        )
-
 
 _FRAMES_RULE = "rows of one time must be consecutive, times increasing"
 
@@ -401,7 +125,7 @@ def read_ground_truth(path: Path) -> Iterator[TruthFrame]:
         Naming the file, line and column of the first problem.
     """
     path = Path(path)
-    records = _records(path, GROUND_TRUTH_COLUMNS, ("time", "id", "x", "y"))
+    records = read_records(path, GROUND_TRUTH_COLUMNS, ("time", "id", "x", "y"))
     if records.rows is not None:
         frames = _truth_from_rows(records.rows)
     else:
@@ -414,7 +138,7 @@ def read_ground_truth(path: Path) -> Iterator[TruthFrame]:
         raise ExternalFileError(path, None, None, "no ground-truth frame in the file")
 
 
-def _truth_from_rows(rows: Iterator[_Row]) -> Iterator[TruthFrame]:
+def _truth_from_rows(rows: Iterator[Row]) -> Iterator[TruthFrame]:
     seq = 0
     stamp: float | None = None
     people: dict[int, PersonState] = {}
@@ -424,7 +148,7 @@ def _truth_from_rows(rows: Iterator[_Row]) -> Iterator[TruthFrame]:
             if stamp is not None:
                 yield _truth_frame(stamp, seq, people)
                 seq += 1
-            _in_order(row, stamp, t, "frame", _FRAMES_RULE)
+            check_order(row, stamp, t, "frame", _FRAMES_RULE)
             stamp, people = t, {}
         if row.nobody(("id", "x", "y")):
             continue
@@ -444,17 +168,15 @@ def _truth_frame(stamp: float, seq: int, people: dict[int, PersonState]) -> Trut
     return TruthFrame(stamp, GroundTruthFrame(stamp=stamp, seq=seq, people=tuple(people.values())))
 
 
-def _truth_from(recording: Iterator[_Recorded] | None) -> Iterator[TruthFrame]:
+def _truth_from(recording: Iterator[Recorded] | None) -> Iterator[TruthFrame]:
     previous: float | None = None
     for item in recording or ():
         if item.topic != "ground_truth":
             continue
         frame: GroundTruthFrame = item.decode(decode_ground_truth)
-        stamp = _Row(item.path, item.line, {"stamp": frame.stamp}).time("stamp")
+        stamp = item.stamp(frame.stamp)
         if previous is not None and stamp <= previous:
-            raise ExternalFileError(
-                item.path, item.line, "msg.stamp", "ground truth does not come after the previous"
-            )
+            raise ExternalFileError(item.path, item.line, "msg.stamp", "not after the previous")
         previous = stamp
         yield TruthFrame(stamp, replace(frame, stamp=stamp))
 
@@ -484,7 +206,7 @@ def read_detections(path: Path, latency_s: float = 0.0) -> Iterator[SensorFrame]
         Naming the file, line and column of the first problem.
     """
     path = Path(path)
-    records = _records(path, DETECTION_COLUMNS, ("time", "sensor"))
+    records = read_records(path, DETECTION_COLUMNS, ("time", "sensor"))
     if records.rows is not None:
         frames = _frames_from_rows(records.rows, latency_s)
     else:
@@ -504,13 +226,11 @@ def read_detections(path: Path, latency_s: float = 0.0) -> Iterator[SensorFrame]
         yield frame
 
 
-def _frames_from_rows(
-    rows: Iterator[_Row], latency_s: float
-) -> Iterator[tuple[_Row, SensorFrame]]:
+def _frames_from_rows(rows: Iterator[Row], latency_s: float) -> Iterator[tuple[Row, SensorFrame]]:
     seqs: dict[str, int] = {}
     last: dict[str, float] = {}
     key: tuple[float, str] | None = None
-    first: _Row | None = None
+    first: Row | None = None
     arrival = 0.0
     detections: list[Detection] = []
     for row in rows:
@@ -518,7 +238,7 @@ def _frames_from_rows(
         if (t, sensor) != key:
             if key is not None and first is not None:
                 yield first, _sensor_frame(first, key, arrival, detections, seqs)
-            _in_order(
+            check_order(
                 row,
                 last.get(sensor),
                 t,
@@ -538,7 +258,7 @@ def _frames_from_rows(
         yield first, _sensor_frame(first, key, arrival, detections, seqs)
 
 
-def _detection(row: _Row) -> Detection:
+def _detection(row: Row) -> Detection:
     height = row.number("height", DEFAULT_HEIGHT_M)
     values = {
         "x": row.number("x"),
@@ -557,7 +277,7 @@ def _detection(row: _Row) -> Detection:
 
 
 def _sensor_frame(
-    row: _Row,
+    row: Row,
     key: tuple[float, str],
     arrival: float,
     detections: list[Detection],
@@ -570,15 +290,14 @@ def _sensor_frame(
     return SensorFrame(arrival, stamp, batch, ())
 
 
-def _frames_from(recording: Iterator[_Recorded] | None) -> Iterator[tuple[_Row, SensorFrame]]:
+def _frames_from(recording: Iterator[Recorded] | None) -> Iterator[tuple[Row, SensorFrame]]:
     for item in recording or ():
         if item.topic.split("/")[0] != "detections":
             continue
         batch: DetectionBatch = item.decode(decode_detection_batch)
-        row = _Row(item.path, item.line, {"stamp": batch.stamp})
-        stamp = row.time("stamp")
+        stamp = item.stamp(batch.stamp)
         frame = SensorFrame(item.received, stamp, replace(batch, stamp=stamp), ())
-        yield _Row(item.path, item.line, {"t": item.received}), frame
+        yield Row(item.path, item.line, {"t": item.received}), frame
 
 
 # --------------------------------------------------------------------------- tracks
@@ -615,14 +334,14 @@ def read_tracks(path: Path) -> Iterator[TrackFrame]:
         Naming the file, line and column of the first problem.
     """
     path = Path(path)
-    records = _records(path, TRACK_COLUMNS, ("time", "id", "x", "y"))
+    records = read_records(path, TRACK_COLUMNS, ("time", "id", "x", "y"))
     if records.rows is not None:
         yield from _tracks_from_rows(records.rows)
     else:
         yield from _tracks_from(records.recording)
 
 
-def _tracks_from_rows(rows: Iterator[_Row]) -> Iterator[TrackFrame]:
+def _tracks_from_rows(rows: Iterator[Row]) -> Iterator[TrackFrame]:
     stamp: float | None = None
     tracks: dict[int, tuple[float, float, float, float]] = {}
     for row in rows:
@@ -630,7 +349,7 @@ def _tracks_from_rows(rows: Iterator[_Row]) -> Iterator[TrackFrame]:
         if t != stamp:
             if stamp is not None:
                 yield _track_frame(stamp, tracks)
-            _in_order(row, stamp, t, "output", _FRAMES_RULE)
+            check_order(row, stamp, t, "output", _FRAMES_RULE)
             stamp, tracks = t, {}
         if row.nobody(("id", "x", "y")):
             continue
@@ -652,13 +371,13 @@ def _track_frame(stamp: float, tracks: dict[int, tuple[float, float, float, floa
     return TrackFrame(stamp, np.array(list(tracks), dtype=np.int64), values[:, :2], values[:, 2:])
 
 
-def _tracks_from(recording: Iterator[_Recorded] | None) -> Iterator[TrackFrame]:
+def _tracks_from(recording: Iterator[Recorded] | None) -> Iterator[TrackFrame]:
     previous: float | None = None
     for item in recording or ():
         if item.topic != "tracks":  # raw tracker output, not tracks/smoothed
             continue
         batch = item.decode(decode_track_batch)
-        stamp = _Row(item.path, item.line, {"stamp": batch.stamp}).time("stamp")
+        stamp = item.stamp(batch.stamp)
         if previous is not None and stamp < previous:
             continue  # a late batch replayed by the tracker: its newer output is known
         previous = stamp
@@ -686,7 +405,9 @@ class TrackFileFeed:
     stale_after_s: float = 1.0
     _latest: TrackFrame | None = None
     _next: TrackFrame | None = None
-    _started: bool = field(default=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self._next = next(self.frames, None)  # the first output (the file opens now)
 
     @classmethod
     def from_file(cls, path: Path, stale_after_s: float = 1.0) -> TrackFileFeed:
@@ -701,8 +422,6 @@ class TrackFileFeed:
 
     def hypotheses_at(self, t: float) -> Hypotheses | None:
         """The latest output at or before ``t``, moved to ``t``."""
-        if not self._started:
-            self._next, self._started = next(self.frames, None), True
         while self._next is not None and self._next.time <= t:
             self._latest, self._next = self._next, next(self.frames, None)
         latest = self._latest

@@ -19,13 +19,8 @@ A pair made in step 2 is an identity switch when the object had already been mat
 before, in any earlier frame, and its most recent hypothesis differs. A hypothesis that
 moves from one object to another (a "transfer" in py-motmetrics) is not a switch.
 
-A *duplicate* is a second track on one person: in a frame, an unmatched hypothesis
-within the threshold of a matched object, and nearer to it than to any unmatched object.
-Duplicates are grouped into episodes, a maximal run of frames in which the same
-hypothesis duplicates the same object (a gap of up to ``duplicate_gap_s`` between two
-such frames does not end it); an episode counts when it lasts (first frame to last)
-more than ``duplicate_min_s``: a tracker that briefly holds two tracks on one person
-while it decides is not punished, one that keeps following a person twice is.
+A *duplicate* is a second track following an object that is already matched; episodes
+of one longer than a second are counted (:mod:`~openptrack_py.eval.duplicates`).
 
 The identity measures IDF1, IDP and IDR [2]_ come from a global one-to-one assignment of
 ground-truth trajectories to hypothesis trajectories that maximises the number of frames
@@ -34,7 +29,8 @@ in which an assigned pair is within the threshold (the identity true positives, 
 This module keeps the history (the accumulator) and the result type; the validation of
 each frame's input, the gating and the step-2 assignment are in
 :mod:`~openptrack_py.eval.matching`, the identity assignment in
-:mod:`~openptrack_py.eval.identity`.
+:mod:`~openptrack_py.eval.identity`, the duplicates in
+:mod:`~openptrack_py.eval.duplicates`.
 
 References
 ----------
@@ -63,6 +59,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from openptrack_py.eval.duplicates import DUPLICATE_GAP_S, DUPLICATE_MIN_S, DuplicateLog
 from openptrack_py.eval.identity import identity_true_positives
 from openptrack_py.eval.matching import (
     EMPTY_IDS,
@@ -80,11 +77,6 @@ __all__ = ["DUPLICATE_GAP_S", "DUPLICATE_MIN_S", "MotAccumulator", "MotMetrics",
 _MOSTLY_TRACKED_RATIO = 0.8
 # A ground-truth track matched in less than this fraction of its frames is mostly lost.
 _MOSTLY_LOST_RATIO = 0.2
-
-DUPLICATE_MIN_S = 1.0
-"""A duplicate episode counts when it lasts longer than this, seconds."""
-DUPLICATE_GAP_S = 0.2
-"""A duplicate episode survives gaps up to this long between two of its frames, seconds."""
 
 
 @dataclass(frozen=True)
@@ -230,8 +222,7 @@ class MotAccumulator:
         frame_rate_hz: float = 30.0,
     ) -> None:
         self._max_distance_m = check_max_distance(max_distance_m)
-        self._duplicate_min_s = _check_seconds("duplicate_min_s", duplicate_min_s)
-        self._duplicate_gap_s = _check_seconds("duplicate_gap_s", duplicate_gap_s)
+        self._duplicates = DuplicateLog(duplicate_min_s, duplicate_gap_s)
         if not (math.isfinite(frame_rate_hz) and frame_rate_hz > 0.0):
             raise ValueError(f"frame_rate_hz must be a finite number > 0; got {frame_rate_hz!r}")
         self._frame_period_s = 1.0 / frame_rate_hz
@@ -248,10 +239,6 @@ class MotAccumulator:
         self._hyp_ids: list[NDArray[np.int64]] = []
         self._pair_gt: list[NDArray[np.int64]] = []
         self._pair_hyp: list[NDArray[np.int64]] = []
-        # one entry per (frame, duplicating hypothesis): frame time, hypothesis, object
-        self._dup_time: list[float] = []
-        self._dup_hyp: list[int] = []
-        self._dup_gt: list[int] = []
 
     @property
     def frames(self) -> int:
@@ -380,7 +367,7 @@ class MotAccumulator:
             self._pair_hyp.append(hyp[vj])
             if matches and matches < m:
                 t = self._frames * self._frame_period_s if time_s is None else float(time_s)
-                self._find_duplicates(t, gt, hyp, dist, gt_match >= 0, hyp_taken)
+                self._duplicates.add_frame(t, gt, hyp, dist, gt_match >= 0, hyp_taken)
         self._frames += 1
         self._matches += matches
         self._distance_sum += matched_distances
@@ -389,29 +376,6 @@ class MotAccumulator:
         self._gt_ids.append(gt)
         self._gt_matched.append(gt_match >= 0)
         self._hyp_ids.append(hyp)
-
-    def _find_duplicates(
-        self,
-        t: float,
-        gt: NDArray[np.int64],
-        hyp: NDArray[np.int64],
-        dist: NDArray[np.float64],
-        gt_matched: NDArray[np.bool_],
-        hyp_taken: NDArray[np.bool_],
-    ) -> None:
-        """Record the unmatched hypotheses that follow an already matched object."""
-        for j in np.flatnonzero(~hyp_taken).tolist():
-            to_matched = np.where(gt_matched, dist[:, j], np.inf)
-            i = int(np.argmin(to_matched))
-            nearest = to_matched[i]
-            if not np.isfinite(nearest):
-                continue
-            to_free = dist[~gt_matched, j]
-            if to_free.size and not nearest < to_free.min():
-                continue
-            self._dup_time.append(t)
-            self._dup_hyp.append(int(hyp[j]))
-            self._dup_gt.append(int(gt[i]))
 
     def compute(self) -> MotMetrics:
         """Compute the metrics over all frames added so far.
@@ -446,13 +410,7 @@ class MotAccumulator:
         pair_hyp = np.concatenate(self._pair_hyp) if self._pair_hyp else EMPTY_IDS
         idtp = identity_true_positives(gt_uniq, gt_frames, hyp_uniq, hyp_frames, pair_gt, pair_hyp)
 
-        duplicates, duplicate_s = _duplicate_episodes(
-            np.asarray(self._dup_time, dtype=np.float64),
-            np.asarray(self._dup_hyp, dtype=np.int64),
-            np.asarray(self._dup_gt, dtype=np.int64),
-            self._duplicate_gap_s,
-            self._duplicate_min_s,
-        )
+        duplicates, duplicate_s = self._duplicates.episodes()
         matches = self._matches
         errors = self._fn + self._fp + self._switches
         return MotMetrics(
@@ -499,38 +457,6 @@ def _count_fragmentations(gt_inv: NDArray[np.intp], matched: NDArray[np.bool_]) 
     last_hit_of = np.repeat(last_hit, np.diff(np.r_[starts, track.size]))
     begins_gap = (track[1:] == track[:-1]) & hit[:-1] & ~hit[1:] & (position[1:] < last_hit_of[1:])
     return int(np.count_nonzero(begins_gap))
-
-
-def _check_seconds(name: str, value: float) -> float:
-    """Validate a duration: a finite number >= 0, returned as a float."""
-    if not (math.isfinite(value) and value >= 0.0):
-        raise ValueError(f"{name} must be a finite number >= 0 (seconds); got {value!r}")
-    return float(value)
-
-
-def _duplicate_episodes(
-    time_s: NDArray[np.float64],
-    hyp: NDArray[np.int64],
-    gt: NDArray[np.int64],
-    gap_s: float,
-    min_s: float,
-) -> tuple[int, float]:
-    """Count the duplicate episodes longer than ``min_s`` and add up their durations.
-
-    One entry per frame in which hypothesis ``hyp[k]`` duplicated object ``gt[k]`` at
-    ``time_s[k]``. An episode is a run of one pair's entries with no gap above
-    ``gap_s``; it lasts from its first entry to its last.
-    """
-    if time_s.size == 0:
-        return 0, 0.0
-    order = np.lexsort((time_s, hyp, gt))
-    t, h, g = time_s[order], hyp[order], gt[order]
-    new = np.r_[True, (g[1:] != g[:-1]) | (h[1:] != h[:-1]) | (np.diff(t) > gap_s)]
-    starts = np.flatnonzero(new)
-    ends = np.r_[starts[1:], t.size] - 1
-    lasted = t[ends] - t[starts]
-    counted = lasted[lasted > min_s]
-    return int(counted.size), float(counted.sum())
 
 
 def _ratio(numerator: float, denominator: float) -> float:
