@@ -111,6 +111,12 @@ def _decode_detection(obj: Any, path: str) -> Detection:
             if (type(v) is not float and type(v) is not int) or not math.isfinite(v):
                 raise fail(f"{path}face[{i}]", "a finite number", v)
         face = tuple(float(v) for v in values)
+    try:  # fast path: six floats, whose ranges the constructor checks
+        numbers = (obj["x"], obj["y"], obj["z"], obj["height"], obj["confidence"], obj["distance"])
+        if all(type(v) is float for v in numbers):
+            return Detection(*numbers, bbox=bbox, appearance=appearance, face=face)
+    except (KeyError, WireFormatError):
+        pass  # the field by field reading below names the first bad one
     return Detection(
         x=read_float(obj, "x", path, -MAX_COORD_M, MAX_COORD_M),
         y=read_float(obj, "y", path, -MAX_COORD_M, MAX_COORD_M),
