@@ -326,6 +326,100 @@ def test_two_minutes_at_30_hz_with_every_track_renamed_once() -> None:
     assert m.id_switches >= n_objects
 
 
+# --------------------------------------------------------------------------- duplicates
+
+RATE_HZ = 30.0
+
+
+def _duplicated(
+    spans: list[tuple[int, float, float]], length_s: float = 4.0, offset_m: float = 0.2
+) -> MotAccumulator:
+    """One person walking along x, followed by track 1 all along and by the extra tracks
+    ``(id, from_s, to_s)`` (``offset_m`` to the side) while their spans last."""
+    acc = MotAccumulator(max_distance_m=GATE)
+    for k in range(round(length_s * RATE_HZ) + 1):
+        t = k / RATE_HZ
+        x = 1.2 * t
+        hyp_ids, hyp_xy = [1], [[x, 0.02]]
+        for hid, start, end in spans:
+            if start <= t + 1e-9 and t <= end + 1e-9:
+                hyp_ids.append(hid)
+                hyp_xy.append([x, offset_m])
+        acc.update([7], [[x, 0.0]], hyp_ids, hyp_xy, time_s=100.0 + t)
+    return acc
+
+
+@pytest.mark.parametrize("lasting_s, counted", [(0.9, 0), (1.1, 1)])
+def test_a_duplicate_counts_only_when_it_lasts_more_than_a_second(
+    lasting_s: float, counted: int
+) -> None:
+    m = _duplicated([(2, 1.0, 1.0 + lasting_s)]).compute()
+    assert m.duplicates == counted
+    assert m.duplicate_s == pytest.approx(lasting_s if counted else 0.0, abs=1e-6)
+    assert m.fp == round(lasting_s * RATE_HZ) + 1  # a duplicate is still a false positive
+    assert m.id_switches == 0 and m.fn == 0
+
+
+def test_a_duplicate_farther_than_the_match_distance_is_not_one() -> None:
+    m = _duplicated([(2, 0.0, 3.0)], offset_m=GATE + 0.1).compute()
+    assert m.duplicates == 0 and m.duplicate_s == 0.0 and m.fp > 0
+
+
+def test_short_gaps_do_not_split_a_duplicate_episode_long_ones_do() -> None:
+    # 0.6 s, a 0.1 s hole, 0.6 s: one episode of 1.3 s
+    bridged = _duplicated([(2, 0.5, 1.1), (2, 1.2, 1.8)]).compute()
+    assert bridged.duplicates == 1 and bridged.duplicate_s == pytest.approx(1.3, abs=1e-6)
+    # 0.6 s, a 0.5 s hole, 0.6 s: two episodes too short to count
+    split = _duplicated([(2, 0.5, 1.1), (2, 1.6, 2.2)]).compute()
+    assert split.duplicates == 0
+
+
+def test_successive_duplicates_under_other_ids_are_separate_episodes() -> None:
+    m = _duplicated([(2, 0.5, 1.1), (3, 1.1 + 1 / RATE_HZ, 1.7)]).compute()
+    assert m.duplicates == 0
+    m = _duplicated([(2, 0.5, 1.7), (3, 2.0, 3.5)]).compute()
+    assert m.duplicates == 2 and m.duplicate_s == pytest.approx(1.2 + 1.5, abs=1e-6)
+
+
+def test_two_people_walking_side_by_side_are_not_duplicates() -> None:
+    # each track is within the match distance of both people, but each person has one
+    acc = MotAccumulator(max_distance_m=GATE)
+    for k in range(120):
+        t = k / RATE_HZ
+        people = [[1.2 * t, 0.0], [1.2 * t, 0.35]]
+        tracks = [[1.2 * t + 0.05, 0.05], [1.2 * t - 0.05, 0.3]]
+        acc.update([1, 2], people, [11, 12], tracks, time_s=t)
+    m = acc.compute()
+    assert m.duplicates == 0 and m.fp == 0 and m.mota == 1.0
+
+
+def test_one_track_between_two_people_is_no_duplicate() -> None:
+    acc = MotAccumulator(max_distance_m=GATE)
+    for k in range(120):
+        acc.update([1, 2], [[0.0, 0.0], [0.0, 0.4]], [11], [[0.0, 0.2]], time_s=k / RATE_HZ)
+    m = acc.compute()
+    assert m.duplicates == 0 and m.fn == 120
+
+
+def test_without_times_frames_follow_each_other_at_the_frame_rate() -> None:
+    def run(rate_hz: float) -> MotMetrics:
+        acc = MotAccumulator(max_distance_m=GATE, frame_rate_hz=rate_hz)
+        for _ in range(40):  # 40 frames: 1.3 s at 30 Hz, 0.65 s at 60 Hz
+            acc.update([1], [[0.0, 0.0]], [11, 12], [[0.0, 0.1], [0.1, 0.0]])
+        return acc.compute()
+
+    assert run(30.0).duplicates == 1 and run(30.0).duplicate_s == pytest.approx(1.3)
+    assert run(60.0).duplicates == 0
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"duplicate_min_s": -1.0}, {"duplicate_gap_s": math.nan}, {"frame_rate_hz": 0.0}]
+)
+def test_constructor_rejects_bad_durations(kwargs: dict[str, float]) -> None:
+    with pytest.raises(ValueError, match=next(iter(kwargs))):
+        MotAccumulator(**kwargs)
+
+
 # --------------------------------------------------------------------------- motmetrics
 
 

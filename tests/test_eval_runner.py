@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import inspect
+import json
 from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
 
+from openptrack_py.errors import ConfigError
 from openptrack_py.eval.runner import Hypotheses, TrackerFeed, TruthFeed, evaluate
 from openptrack_py.messages import DetectionBatch, GroundTruthFrame, Track, TrackBatch
 from openptrack_py.sim import DEFAULT_START_TIME, build_scenario
-from openptrack_py.sim.simulator import SensorFrame
+from openptrack_py.sim.simulator import SensorFrame, TruthFrame
 from openptrack_py.tracking import TrackingPipeline
 
 
@@ -26,7 +29,7 @@ def crowd():
 def test_ground_truth_scores_perfectly(crowd) -> None:
     m = evaluate(crowd, _truth()).metrics
     assert (m.mota, m.idf1, m.motp) == (1.0, 1.0, 0.0)
-    assert m.id_switches == m.fp == m.fn == m.fragmentations == 0
+    assert m.id_switches == m.fp == m.fn == m.fragmentations == m.duplicates == 0
     assert m.frames == 601 and m.gt_tracks == 7
 
 
@@ -42,6 +45,38 @@ def test_one_relabelled_person_is_exactly_one_id_switch(crowd) -> None:
 def test_two_people_exchanging_ids_are_two_switches(crowd) -> None:
     m = evaluate(crowd, _truth(swap=(1, 2, 5.0))).metrics
     assert m.id_switches == 2 and m.fp == m.fn == 0
+
+
+@dataclass
+class Doubled:
+    """The truth, with a second track following one person for a while."""
+
+    person: int
+    start: float
+    end: float
+    truth: TruthFeed = field(default_factory=lambda: _truth())
+
+    def on_sensor_frame(self, frame: SensorFrame) -> None:
+        """Sensors are ignored."""
+
+    def on_truth_frame(self, frame: TruthFrame) -> None:
+        self.truth.on_truth_frame(frame)
+
+    def hypotheses_at(self, t: float) -> Hypotheses | None:
+        hyp = self.truth.hypotheses_at(t)
+        assert hyp is not None
+        if not self.start <= t - DEFAULT_START_TIME <= self.end:
+            return hyp
+        (row,) = np.flatnonzero(hyp.ids == self.person)
+        twin = hyp.xy[row] + [0.15, 0.1]
+        return Hypotheses(np.r_[hyp.ids, 99], np.vstack([hyp.xy, twin]))
+
+
+def test_a_second_track_on_one_person_is_one_duplicate_with_its_duration(crowd) -> None:
+    m = evaluate(crowd, Doubled(person=3, start=5.0, end=8.0)).metrics
+    assert m.duplicates == 1 and m.duplicate_s == pytest.approx(3.0, abs=1e-6)
+    assert m.fp == 91 and m.id_switches == 0
+    assert evaluate(crowd, Doubled(person=3, start=5.0, end=5.9)).metrics.duplicates == 0
 
 
 def test_frames_without_output_count_every_object_as_missed(crowd) -> None:
@@ -137,3 +172,73 @@ def test_rgbd_evaluation_tracks_through_the_real_detector_children_included() ->
     scores = run_eval(scenario, sensor_model="rgbd").to_dict()
     assert scores["mota"] >= 0.9 and scores["idf1"] >= 0.85, scores
     assert scores["id_switches"] == 0
+
+
+# -------------------------------------------------------------- simulator noise profiles
+
+HAS_PROFILES = "profile" in inspect.signature(build_scenario).parameters
+
+
+def _recording_build(monkeypatch: pytest.MonkeyPatch, with_profiles: bool) -> list[dict]:
+    """Replace the simulator's scenario builder by one that records its keyword arguments
+    (and takes ``profile`` or not), building a short real scenario."""
+    import openptrack_py.eval.trackers as trackers
+
+    calls: list[dict] = []
+
+    def build(name: str, seed: int = 0, duration_s: float | None = -1.0, **kw: object):
+        calls.append(kw)
+        return build_scenario(name, seed=seed, duration_s=2.0)
+
+    def build_with_profiles(
+        name: str, seed: int = 0, duration_s: float | None = -1.0, profile: str | None = None
+    ):
+        return build(name, seed, duration_s, **({} if profile is None else {"profile": profile}))
+
+    monkeypatch.setattr(
+        trackers, "build_scenario", build_with_profiles if with_profiles else build
+    )
+    return calls
+
+
+def test_run_eval_passes_a_profile_only_when_given(monkeypatch: pytest.MonkeyPatch) -> None:
+    from openptrack_py.eval.trackers import run_eval
+
+    calls = _recording_build(monkeypatch, with_profiles=True)
+    run_eval("crowd", tracker="truth", profile="harsh")
+    run_eval("crowd", tracker="truth")
+    assert calls == [{"profile": "harsh"}, {}]
+
+
+@pytest.mark.parametrize(
+    "with_profiles, passed", [(True, [{"profile": "realistic"}]), (False, [{}])]
+)
+def test_the_cli_evaluates_on_realistic_by_default_where_there_are_profiles(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    with_profiles: bool,
+    passed: list[dict],
+) -> None:
+    from openptrack_py.cli import main
+
+    calls = _recording_build(monkeypatch, with_profiles)
+    assert main(["eval", "--tracker", "truth", "--format", "json"]) == 0
+    row = json.loads(capsys.readouterr().out)
+    assert calls == passed and row.get("profile") == passed[0].get("profile")
+
+
+def test_a_profile_the_simulator_lacks_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    from openptrack_py.eval.trackers import run_eval
+
+    _recording_build(monkeypatch, with_profiles=False)
+    with pytest.raises(ConfigError, match="no noise profiles"):
+        run_eval("crowd", tracker="truth", profile="harsh")
+
+
+@pytest.mark.skipif(not HAS_PROFILES, reason="the simulator has no noise profiles yet")
+@pytest.mark.parametrize("profile", ["ideal", "realistic", "harsh"])
+def test_every_profile_reaches_the_simulator(profile: str) -> None:
+    from openptrack_py.eval.trackers import run_eval
+
+    m = run_eval("crowd", duration_s=3.0, tracker="truth", profile=profile).metrics
+    assert m.mota == 1.0 and m.duplicates == 0

@@ -9,6 +9,7 @@ golden files), never a side effect.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -785,33 +786,6 @@ def _fields(message: Any) -> dict[str, Any]:
 
 
 NON_FINITE = [
-    pytest.param(
-        "detections", _with(GOLDEN["detections"], stamp=_NAN), "stamp", id="det-stamp-nan"
-    ),
-    pytest.param(
-        "detections",
-        _with(GOLDEN["detections"], detections=(_with(_D0, x=_NAN),)),
-        "x",
-        id="det-x-nan",
-    ),
-    pytest.param(
-        "detections",
-        _with(GOLDEN["detections"], detections=(_D0, _with(_D1, confidence=_INF))),
-        "confidence",
-        id="det-confidence-inf",
-    ),
-    pytest.param(
-        "detections",
-        _with(GOLDEN["detections"], detections=(_with(_D0, distance=-_INF),)),
-        "distance",
-        id="det-distance-minus-inf",
-    ),
-    pytest.param(
-        "detections",
-        _with(GOLDEN["detections"], detections=(_with(_D1, face=(0.5, _NAN)),)),
-        "face",
-        id="det-face-nan",
-    ),
     pytest.param("tracks", _with(GOLDEN["tracks"], stamp=_INF), "stamp", id="tracks-stamp-inf"),
     pytest.param(
         "tracks",
@@ -879,6 +853,84 @@ def test_encoder_refuses_non_finite_numbers(kind: str, message: Any, field: str)
     with pytest.raises(WireFormatError) as info:
         encode(message)
     assert field in str(info.value)
+
+
+def test_encoder_refuses_a_non_finite_detection_smuggled_past_its_constructor() -> None:
+    detection = _with(_D0)
+    object.__setattr__(detection, "x", _NAN)  # what no producer can do by building one
+    with pytest.raises(WireFormatError, match="cannot encode detection: x is nan"):
+        encode_detection_batch(_with(GOLDEN["detections"], detections=(detection,)))
+
+
+# ------------------------------------------------- detections are checked when built
+
+# (field, bad value, the field's path in the decoder's message)
+BAD_DETECTION_FIELDS = [
+    ("x", _NAN, "x"),
+    ("y", -_INF, "y"),
+    ("z", 2.0e4, "z"),
+    ("height", -1.0, "height"),
+    ("height", 10.5, "height"),
+    ("confidence", _INF, "confidence"),
+    ("confidence", 1.5, "confidence"),
+    ("distance", -0.1, "distance"),
+    ("x", "1.0", "x"),
+    ("x", True, "x"),
+    ("bbox", (1, 2, -3, 4), "bbox"),
+    ("bbox", (1, 2, 3), "bbox"),
+    ("bbox", (1, 2, 3, 1 << 21), "bbox[3]"),
+    ("appearance", (1, 256), "appearance[1]"),
+    ("appearance", (0,) * (MAX_APPEARANCE_BINS + 1), "appearance"),
+    ("face", (0.5, _NAN), "face[1]"),
+    ("face", (0.0,) * (MAX_FACE_DIMS + 1), "face"),
+]
+
+
+@pytest.mark.parametrize("name, value, path", BAD_DETECTION_FIELDS)
+def test_a_detection_is_checked_when_built_in_the_decoders_words(
+    name: str, value: Any, path: str
+) -> None:
+    with pytest.raises(WireFormatError) as built:
+        _with(_D1, **{name: value})
+    assert str(built.value).startswith(f"Detection.{path}: ")
+    numbers = value if isinstance(value, tuple) else (value,)
+    if all(type(v) in (int, float) and math.isfinite(v) for v in numbers):
+        # the same value on the wire (JSON has no NaN) gets the same words after the path
+        obj = _golden_dict("detections")
+        obj["detections"][1][name] = list(value) if isinstance(value, tuple) else value
+        with pytest.raises(WireFormatError) as decoded:
+            decode_detection_batch(orjson.dumps(obj))
+        assert str(decoded.value).startswith(f"detections[1].{path}: ")
+        assert str(built.value).split(": ", 1)[1] == str(decoded.value).split(": ", 1)[1]
+
+
+@pytest.mark.parametrize(
+    "name, value, path",
+    [
+        ("stamp", _NAN, "stamp"),
+        ("stamp", -1.0, "stamp"),
+        ("seq", -1, "seq"),
+        ("seq", 1.0, "seq"),
+        ("sensor_id", "k2 a", "sensor_id"),
+        ("sensor_id", "", "sensor_id"),
+        ("frame_id", "s" * (MAX_NAME_LEN + 1), "frame_id"),
+        ("detections", [_D0], "detections"),
+        ("detections", (_D0, (1.0, 2.0)), "detections[1]"),
+        ("detections", (_D0,) * (MAX_ITEMS + 1), "detections"),
+    ],
+)
+def test_a_detection_batch_is_checked_when_built(name: str, value: Any, path: str) -> None:
+    with pytest.raises(WireFormatError, match=rf"^DetectionBatch\.{re.escape(path)}: "):
+        _with(GOLDEN["detections"], **{name: value})
+
+
+def test_valid_detections_of_any_real_number_type_are_built() -> None:
+    import numpy as np
+
+    d = Detection(x=np.float64(1.0), y=2, z=np.float32(0.9), height=1.7, confidence=1, distance=0)
+    assert d.y == 2 and d.confidence == 1
+    batch = DetectionBatch("k2_a", np.int64(3), 1.0e9, "world", (d,))  # type: ignore[arg-type]
+    assert batch.seq == 3
 
 
 # --------------------------------------------------------------------- key routing

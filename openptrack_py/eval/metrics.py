@@ -19,6 +19,9 @@ A pair made in step 2 is an identity switch when the object had already been mat
 before, in any earlier frame, and its most recent hypothesis differs. A hypothesis that
 moves from one object to another (a "transfer" in py-motmetrics) is not a switch.
 
+A *duplicate* is a second track following an object that is already matched; episodes
+of one longer than a second are counted (:mod:`~openptrack_py.eval.duplicates`).
+
 The identity measures IDF1, IDP and IDR [2]_ come from a global one-to-one assignment of
 ground-truth trajectories to hypothesis trajectories that maximises the number of frames
 in which an assigned pair is within the threshold (the identity true positives, IDTP).
@@ -26,7 +29,8 @@ in which an assigned pair is within the threshold (the identity true positives, 
 This module keeps the history (the accumulator) and the result type; the validation of
 each frame's input, the gating and the step-2 assignment are in
 :mod:`~openptrack_py.eval.matching`, the identity assignment in
-:mod:`~openptrack_py.eval.identity`.
+:mod:`~openptrack_py.eval.identity`, the duplicates in
+:mod:`~openptrack_py.eval.duplicates`.
 
 References
 ----------
@@ -55,6 +59,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from openptrack_py.eval.duplicates import DUPLICATE_GAP_S, DUPLICATE_MIN_S, DuplicateLog
 from openptrack_py.eval.identity import identity_true_positives
 from openptrack_py.eval.matching import (
     EMPTY_IDS,
@@ -66,7 +71,7 @@ from openptrack_py.eval.matching import (
     pairwise_distances,
 )
 
-__all__ = ["MotAccumulator", "MotMetrics", "distance_matrix"]
+__all__ = ["DUPLICATE_GAP_S", "DUPLICATE_MIN_S", "MotAccumulator", "MotMetrics", "distance_matrix"]
 
 # A ground-truth track matched in at least this fraction of its frames is mostly tracked.
 _MOSTLY_TRACKED_RATIO = 0.8
@@ -122,6 +127,11 @@ class MotMetrics:
         Ground-truth ids matched in at least 20 % and less than 80 % of their frames.
     mostly_lost : int
         Ground-truth ids matched in less than 20 % of their frames.
+    duplicates : int
+        Duplicate episodes (a second hypothesis following an object that is already
+        matched) that last longer than ``duplicate_min_s``.
+    duplicate_s : float
+        Total duration of those episodes, seconds.
     """
 
     mota: float
@@ -144,6 +154,8 @@ class MotMetrics:
     mostly_tracked: int
     partially_tracked: int
     mostly_lost: int
+    duplicates: int
+    duplicate_s: float
 
     def to_dict(self) -> dict[str, float | int | None]:
         """Return the metrics as a JSON-friendly dictionary.
@@ -172,11 +184,19 @@ class MotAccumulator:
     max_distance_m : float, optional
         Largest Euclidean distance in metres at which a ground-truth object and a
         hypothesis may correspond. Must be finite and > 0. Default 0.5.
+    duplicate_min_s : float, optional
+        A duplicate episode counts when it lasts longer than this, seconds. Default 1.0.
+    duplicate_gap_s : float, optional
+        Longest gap between two frames of one duplicate episode, seconds. Default 0.2.
+    frame_rate_hz : float, optional
+        Frames added without a ``time_s`` are taken to follow each other at this rate
+        (only duplicate episodes use time). Default 30.
 
     Raises
     ------
     ValueError
-        If ``max_distance_m`` is not a finite number > 0.
+        If ``max_distance_m`` is not a finite number > 0, or a duration or the rate is
+        negative or not finite.
 
     Notes
     -----
@@ -193,8 +213,19 @@ class MotAccumulator:
     1.0
     """
 
-    def __init__(self, max_distance_m: float = 0.5) -> None:
+    def __init__(
+        self,
+        max_distance_m: float = 0.5,
+        *,
+        duplicate_min_s: float = DUPLICATE_MIN_S,
+        duplicate_gap_s: float = DUPLICATE_GAP_S,
+        frame_rate_hz: float = 30.0,
+    ) -> None:
         self._max_distance_m = check_max_distance(max_distance_m)
+        self._duplicates = DuplicateLog(duplicate_min_s, duplicate_gap_s)
+        if not (math.isfinite(frame_rate_hz) and frame_rate_hz > 0.0):
+            raise ValueError(f"frame_rate_hz must be a finite number > 0; got {frame_rate_hz!r}")
+        self._frame_period_s = 1.0 / frame_rate_hz
         # ground-truth id -> hypothesis id of its most recent match (any earlier frame)
         self._last_hyp: dict[int, int] = {}
         self._frames = 0
@@ -220,6 +251,7 @@ class MotAccumulator:
         gt_xy: ArrayLike,
         hyp_ids: ArrayLike,
         hyp_xy: ArrayLike,
+        time_s: float | None = None,
     ) -> None:
         """Add one frame of ground truth and tracker output.
 
@@ -234,6 +266,10 @@ class MotAccumulator:
         hyp_xy : array_like, shape (m, 2) or (m, 3)
             Hypothesis positions in metres; same number of coordinates as ``gt_xy`` when
             both are non-empty.
+        time_s : float, optional
+            Time of the frame, seconds (any origin, increasing). Without it the frame
+            comes one period of ``frame_rate_hz`` after the previous one. Give it for
+            every frame or for none.
 
         Raises
         ------
@@ -255,9 +291,11 @@ class MotAccumulator:
             dist[dist > self._max_distance_m] = np.inf
         else:
             dist = np.empty((gt.size, hyp.size), dtype=np.float64)
-        self._add_frame(gt, hyp, dist)
+        self._add_frame(gt, hyp, dist, time_s)
 
-    def update_missing_frame(self, gt_ids: ArrayLike, gt_xy: ArrayLike) -> None:
+    def update_missing_frame(
+        self, gt_ids: ArrayLike, gt_xy: ArrayLike, time_s: float | None = None
+    ) -> None:
         """Add a frame for which the tracker produced no output at all.
 
         Every ground-truth object present is a miss; this is the same as :meth:`update`
@@ -269,6 +307,8 @@ class MotAccumulator:
             Ground-truth ids present in the frame, unique within the frame.
         gt_xy : array_like, shape (n, 2) or (n, 3)
             Ground-truth positions in metres (validated, not otherwise used).
+        time_s : float, optional
+            Time of the frame, seconds (see :meth:`update`).
 
         Raises
         ------
@@ -277,10 +317,14 @@ class MotAccumulator:
         """
         gt = as_ids(gt_ids, "gt_ids")
         as_points(gt_xy, "gt_xy", gt.size, "gt_ids")
-        self._add_frame(gt, EMPTY_IDS, np.empty((gt.size, 0), dtype=np.float64))
+        self._add_frame(gt, EMPTY_IDS, np.empty((gt.size, 0), dtype=np.float64), time_s)
 
     def _add_frame(
-        self, gt: NDArray[np.int64], hyp: NDArray[np.int64], dist: NDArray[np.float64]
+        self,
+        gt: NDArray[np.int64],
+        hyp: NDArray[np.int64],
+        dist: NDArray[np.float64],
+        time_s: float | None,
     ) -> None:
         """Match one validated frame and record its events."""
         n, m = dist.shape
@@ -321,6 +365,9 @@ class MotAccumulator:
             vi, vj = np.nonzero(gated)
             self._pair_gt.append(gt[vi])
             self._pair_hyp.append(hyp[vj])
+            if matches and matches < m:
+                t = self._frames * self._frame_period_s if time_s is None else float(time_s)
+                self._duplicates.add_frame(t, gt, hyp, dist, gt_match >= 0, hyp_taken)
         self._frames += 1
         self._matches += matches
         self._distance_sum += matched_distances
@@ -363,6 +410,7 @@ class MotAccumulator:
         pair_hyp = np.concatenate(self._pair_hyp) if self._pair_hyp else EMPTY_IDS
         idtp = identity_true_positives(gt_uniq, gt_frames, hyp_uniq, hyp_frames, pair_gt, pair_hyp)
 
+        duplicates, duplicate_s = self._duplicates.episodes()
         matches = self._matches
         errors = self._fn + self._fp + self._switches
         return MotMetrics(
@@ -386,6 +434,8 @@ class MotAccumulator:
             mostly_tracked=mostly_tracked,
             partially_tracked=partially_tracked,
             mostly_lost=mostly_lost,
+            duplicates=duplicates,
+            duplicate_s=duplicate_s,
         )
 
 

@@ -14,12 +14,16 @@ The harness is the same whatever produces the hypotheses:
 * A hypothesis within ``max_distance_m`` of a person who is present but not covered
   (walking out of view, say) is neither rewarded nor punished: it is removed before
   scoring, like a "don't care" region.
+
+:func:`evaluate` plays a simulated scenario; :func:`play` scores any time-ordered stream
+of sensor and ground-truth frames the same way (:mod:`openptrack_py.eval.external`
+builds one from files).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -51,7 +55,11 @@ class Hypotheses:
 
 
 class HypothesisFeed(Protocol):
-    """Something that watches the simulation and says where it believes people are."""
+    """Something that watches the simulation and says where it believes people are.
+
+    A feed may also have ``on_sensors_ended()``, called when no sensor frame will
+    follow (streams that know their end emit :class:`SensorsEnded`).
+    """
 
     def on_sensor_frame(self, frame: SensorFrame) -> None:
         """A sensor batch reached the network at ``frame.time``."""
@@ -73,6 +81,9 @@ class Pipeline(Protocol):
 
     def poll(self, now: float) -> list[tuple[DetectionBatch, TrackBatch]]:
         """Steps whose wait ended by ``now``."""
+
+    def flush(self) -> list[tuple[DetectionBatch, TrackBatch]]:
+        """Steps with every batch still held."""
 
 
 @dataclass
@@ -118,6 +129,13 @@ class TrackerFeed:
         """Use only the clock: release batches whose wait is over."""
         start = time.perf_counter()
         results = self.pipeline.poll(frame.time)
+        self.step_seconds += time.perf_counter() - start
+        self._take(results)
+
+    def on_sensors_ended(self) -> None:
+        """No batch will follow: apply those the reorder window still holds."""
+        start = time.perf_counter()
+        results = self.pipeline.flush()
         self.step_seconds += time.perf_counter() - start
         self._take(results)
 
@@ -180,6 +198,23 @@ class TruthFeed:
         return Hypotheses(np.array(ids, dtype=np.int64), xy)
 
 
+@dataclass(frozen=True, slots=True)
+class SensorsEnded:
+    """Event after the last sensor frame of a stream (the feed may flush what it holds).
+
+    Parameters
+    ----------
+    time : float
+        Time of the last sensor frame, seconds.
+    """
+
+    time: float
+
+
+Event = SensorFrame | TruthFrame | SensorsEnded
+"""What :func:`play` consumes, in time order."""
+
+
 @dataclass(frozen=True)
 class EvalResult:
     """Metrics of one run and how long it took.
@@ -189,11 +224,11 @@ class EvalResult:
     metrics : MotMetrics
         CLEAR MOT and identity metrics.
     scenario : str
-        Scenario name.
-    seed : int
-        Seed.
+        Scenario name (the ground-truth file's name for files).
+    seed : int or None
+        Seed (``None`` for files: left out of :meth:`to_dict`).
     duration_s : float
-        Simulated time.
+        Simulated time (first to last ground-truth frame for files).
     sensors : int
         Number of sensors.
     batches : int
@@ -206,7 +241,7 @@ class EvalResult:
 
     metrics: MotMetrics
     scenario: str
-    seed: int
+    seed: int | None
     duration_s: float
     sensors: int
     batches: int
@@ -215,9 +250,10 @@ class EvalResult:
 
     def to_dict(self) -> dict[str, object]:
         """Flat JSON-ready mapping: run description first, then every metric."""
-        out: dict[str, object] = {
-            "scenario": self.scenario,
-            "seed": self.seed,
+        out: dict[str, object] = {"scenario": self.scenario}
+        if self.seed is not None:
+            out["seed"] = self.seed
+        out |= {
             "duration_s": self.duration_s,
             "sensors": self.sensors,
             "batches": self.batches,
@@ -282,7 +318,15 @@ def evaluate(
     sim = _simulator(scenario, ground_truth_rate_hz, sensor_model)
     acc = MotAccumulator(max_distance_m)
     start = time.perf_counter()
-    batches = _play(sim, feed, acc, max_distance_m, warmup_s, on_frame)
+    played = play(
+        sim.events(),
+        feed,
+        acc,
+        max_distance_m=max_distance_m,
+        warmup_s=warmup_s,
+        start_time=sim.start_time,
+        on_frame=on_frame,
+    )
     wall = time.perf_counter() - start
     return EvalResult(
         metrics=acc.compute(),
@@ -290,9 +334,9 @@ def evaluate(
         seed=scenario.seed,
         duration_s=scenario.duration_s,
         sensors=len(scenario.sensors),
-        batches=batches,
+        batches=played.batches,
         wall_s=wall,
-        tracker_ms_per_batch=_tracker_ms_per_batch(feed),
+        tracker_ms_per_batch=tracker_ms_per_batch(feed),
     )
 
 
@@ -311,32 +355,83 @@ def _simulator(scenario: Scenario, ground_truth_rate_hz: float, sensor_model: st
     )
 
 
-def _play(
-    sim: Simulator,
+@dataclass
+class Played:
+    """What :func:`play` went through.
+
+    Parameters
+    ----------
+    batches : int
+        Sensor frames fed.
+    sensors : set of str
+        Sensor ids seen.
+    first_truth : float or None
+        Time of the first ground-truth frame.
+    last_truth : float or None
+        Time of the last ground-truth frame.
+    """
+
+    batches: int = 0
+    sensors: set[str] = field(default_factory=set)
+    first_truth: float | None = None
+    last_truth: float | None = None
+
+
+def play(
+    events: Iterable[Event],
     feed: HypothesisFeed,
     acc: MotAccumulator,
-    max_distance_m: float,
-    warmup_s: float,
-    on_frame: Callable[[float, GroundTruthFrame, Hypotheses | None], None] | None,
-) -> int:
-    """Run the simulation into ``feed``, scoring ground truth after the warm-up.
+    *,
+    max_distance_m: float = 0.5,
+    warmup_s: float = 0.0,
+    start_time: float | None = None,
+    on_frame: Callable[[float, GroundTruthFrame, Hypotheses | None], None] | None = None,
+) -> Played:
+    """Feed time-ordered events to ``feed``, scoring each ground-truth frame after the warm-up.
+
+    Parameters
+    ----------
+    events : iterable of SensorFrame, TruthFrame or SensorsEnded
+        The stream, in time order (sensor frames at their arrival time).
+    feed : HypothesisFeed
+        Source of hypotheses.
+    acc : MotAccumulator
+        Where the frames are scored.
+    max_distance_m : float
+        Largest distance at which a hypothesis may correspond to a person.
+    warmup_s : float
+        Ground-truth frames earlier than this after ``start_time`` are not scored.
+    start_time : float, optional
+        Start of the run; the first ground-truth frame's time when not given.
+    on_frame : callable, optional
+        Called with every scored frame.
 
     Returns
     -------
-    int
-        The number of sensor batches the simulation produced.
+    Played
+        Counts of what was played.
     """
-    batches = 0
-    for event in sim.events():
+    played = Played()
+    for event in events:
         if isinstance(event, SensorFrame):
-            batches += 1
+            played.batches += 1
+            played.sensors.add(event.batch.sensor_id)
             feed.on_sensor_frame(event)
             continue
+        if isinstance(event, SensorsEnded):
+            ended = getattr(feed, "on_sensors_ended", None)
+            if ended is not None:
+                ended()
+            continue
         feed.on_truth_frame(event)
-        if event.time - sim.start_time < warmup_s:
+        if played.first_truth is None:
+            played.first_truth = event.time
+        played.last_truth = event.time
+        origin = played.first_truth if start_time is None else start_time
+        if event.time - origin < warmup_s:
             continue
         _score_frame(event, feed, acc, max_distance_m, on_frame)
-    return batches
+    return played
 
 
 def _score_frame(
@@ -355,14 +450,14 @@ def _score_frame(
     if on_frame is not None:
         on_frame(event.time, event.frame, hyp)
     if hyp is None:
-        acc.update_missing_frame(gt_ids, gt_xy)
+        acc.update_missing_frame(gt_ids, gt_xy, time_s=event.time)
         return
     uncovered = np.array([(p.x, p.y) for p in people if not p.covered]).reshape(-1, 2)
     hyp = _drop_dont_care(hyp, uncovered, max_distance_m)
-    acc.update(gt_ids, gt_xy, hyp.ids, hyp.xy)
+    acc.update(gt_ids, gt_xy, hyp.ids, hyp.xy, time_s=event.time)
 
 
-def _tracker_ms_per_batch(feed: HypothesisFeed) -> float | None:
+def tracker_ms_per_batch(feed: HypothesisFeed) -> float | None:
     """Mean tracker step time in ms, when the feed ran a tracker that stepped."""
     if isinstance(feed, TrackerFeed) and feed.steps:
         return 1e3 * feed.step_seconds / feed.steps

@@ -18,9 +18,11 @@ from openptrack_py.messages.fields import (
     MAX_APPEARANCE_BINS,
     MAX_COORD_M,
     MAX_FACE_DIMS,
+    MAX_HEIGHT_M,
     MAX_ID,
     MAX_ITEMS,
     MAX_NAME_LEN,
+    MAX_STAMP_S,
     SCHEMA_VERSION,
     check_finite,
     check_keys,
@@ -109,11 +111,17 @@ def _decode_detection(obj: Any, path: str) -> Detection:
             if (type(v) is not float and type(v) is not int) or not math.isfinite(v):
                 raise fail(f"{path}face[{i}]", "a finite number", v)
         face = tuple(float(v) for v in values)
+    try:  # fast path: six floats, whose ranges the constructor checks
+        numbers = (obj["x"], obj["y"], obj["z"], obj["height"], obj["confidence"], obj["distance"])
+        if all(type(v) is float for v in numbers):
+            return Detection(*numbers, bbox=bbox, appearance=appearance, face=face)
+    except (KeyError, WireFormatError):
+        pass  # the field by field reading below names the first bad one
     return Detection(
         x=read_float(obj, "x", path, -MAX_COORD_M, MAX_COORD_M),
         y=read_float(obj, "y", path, -MAX_COORD_M, MAX_COORD_M),
         z=read_float(obj, "z", path, -MAX_COORD_M, MAX_COORD_M),
-        height=read_float(obj, "height", path, 0.0, 10.0),
+        height=read_float(obj, "height", path, 0.0, MAX_HEIGHT_M),
         confidence=read_float(obj, "confidence", path, 0.0, 1.0),
         distance=read_float(obj, "distance", path, 0.0, MAX_COORD_M),
         bbox=bbox,
@@ -136,7 +144,7 @@ def decode_detection_batch(payload: bytes | bytearray | memoryview | str) -> Det
     return DetectionBatch(
         sensor_id=read_name(obj, "sensor_id", ""),
         seq=read_int(obj, "seq", ""),
-        stamp=read_float(obj, "stamp", "", 0.0, 1.0e11),
+        stamp=read_float(obj, "stamp", "", 0.0, MAX_STAMP_S),
         frame_id=read_name(obj, "frame_id", ""),
         detections=tuple(_decode_detection(d, f"detections[{i}].") for i, d in enumerate(items)),
     )
@@ -238,7 +246,7 @@ def _decode_track(obj: Any, path: str) -> Track:
         x=read_float(obj, "x", path, -MAX_COORD_M, MAX_COORD_M),
         y=read_float(obj, "y", path, -MAX_COORD_M, MAX_COORD_M),
         z=read_float(obj, "z", path, -MAX_COORD_M, MAX_COORD_M),
-        height=read_float(obj, "height", path, 0.0, 10.0),
+        height=read_float(obj, "height", path, 0.0, MAX_HEIGHT_M),
         vx=read_float(obj, "vx", path, -1.0e3, 1.0e3),
         vy=read_float(obj, "vy", path, -1.0e3, 1.0e3),
         age=read_float(obj, "age", path, 0.0, 1.0e9),
@@ -261,7 +269,7 @@ def decode_track_batch(payload: bytes | bytearray | memoryview | str) -> TrackBa
     obj = parse_message(payload, "tracks", _TRACK_BATCH_KEYS)
     items = read_list(obj, "tracks", "")
     return TrackBatch(
-        stamp=read_float(obj, "stamp", "", 0.0, 1.0e11),
+        stamp=read_float(obj, "stamp", "", 0.0, MAX_STAMP_S),
         seq=read_int(obj, "seq", ""),
         frame_id=read_name(obj, "frame_id", ""),
         tracks=tuple(_decode_track(t, f"tracks[{i}].") for i, t in enumerate(items)),
@@ -316,7 +324,7 @@ def _decode_person(obj: Any, path: str) -> PersonState:
         id=read_int(obj, "id", path),
         x=read_float(obj, "x", path, -MAX_COORD_M, MAX_COORD_M),
         y=read_float(obj, "y", path, -MAX_COORD_M, MAX_COORD_M),
-        height=read_float(obj, "height", path, 0.0, 10.0),
+        height=read_float(obj, "height", path, 0.0, MAX_HEIGHT_M),
         vx=read_float(obj, "vx", path, -1.0e3, 1.0e3),
         vy=read_float(obj, "vy", path, -1.0e3, 1.0e3),
         kind=kind,
@@ -335,7 +343,7 @@ def decode_ground_truth(payload: bytes | bytearray | memoryview | str) -> Ground
     obj = parse_message(payload, "ground_truth", _GROUND_TRUTH_KEYS)
     items = read_list(obj, "people", "")
     return GroundTruthFrame(
-        stamp=read_float(obj, "stamp", "", 0.0, 1.0e11),
+        stamp=read_float(obj, "stamp", "", 0.0, MAX_STAMP_S),
         seq=read_int(obj, "seq", ""),
         people=tuple(_decode_person(p, f"people[{i}].") for i, p in enumerate(items)),
     )

@@ -28,6 +28,10 @@ MAX_APPEARANCE_BINS = 256
 MAX_FACE_DIMS = 1024
 MAX_COORD_M = 1.0e4
 """Positions beyond 10 km are not people in a room: rejected as corrupt."""
+MAX_HEIGHT_M = 10.0
+"""Largest height of a person (or of a detection's top) above the floor."""
+MAX_STAMP_S = 1.0e11
+"""Largest time stamp, UNIX seconds (year 5138): anything later is corrupt."""
 MAX_NAME_LEN = 128
 MAX_ID = (1 << 31) - 1
 """Largest track id: OpenPTrack clients read ids as int32."""
