@@ -119,7 +119,10 @@ def test_our_tracker_on_csv_detections_from_two_sensors(
     assert row["tracker"] == "ukf" and row["detections"] == str(dets)
     assert row["sensors"] == 2 and row["batches"] == 2 * 181
     assert row["frames"] == 361 and row["gt_objects"] == 722 and row["gt_tracks"] == 2
-    assert row["mota"] > 0.95 and row["idf1"] > 0.95 and row["motp"] < 0.1
+    # the walkers (0.4-0.5 m/s) are confirmed once they have moved 0.5 m, about 1.1 s of
+    # the 12 s: about 0.09 of MOTA; everything after that is tracked
+    assert row["mota"] > 0.88 and row["idf1"] > 0.9 and row["motp"] < 0.1
+    assert row["fp"] == 0 and row["fn"] < 0.12 * row["gt_objects"]
     assert row["id_switches"] == 0 and row["duplicates"] == 0 and row["duplicate_s"] == 0.0
     assert "seed" not in row and row["duration_s"] == pytest.approx(DURATION_S)
 
@@ -208,7 +211,8 @@ def test_a_recording_serves_as_ground_truth_and_detections(
     assert code == 0, err
     assert isinstance(row, dict)
     assert row["sensors"] == 3 and row["frames"] == 301
-    assert row["mota"] > 0.9 and row["mota"] == pytest.approx(simulated_mota, abs=0.005)
+    # 10 s of crowd: people are confirmed once they walk, the first second or two
+    assert row["mota"] > 0.75 and row["mota"] == pytest.approx(simulated_mota, abs=0.005)
     assert row["duplicates"] == 0
 
 

@@ -234,7 +234,7 @@ def _frame_batches(frames: list[str]) -> tuple[list[TrackBatch], int]:
 
 
 def test_a_sensor_without_pose_is_tracked_alone_in_its_own_frame() -> None:
-    tracks, dropped = _frame_batches(["cam"] * 10)
+    tracks, dropped = _frame_batches(["cam"] * 30)  # a track is confirmed once it moved
     assert dropped == 0
     assert tracks and {t.frame_id for t in tracks} == {"cam"}
     assert any(t.tracks for t in tracks)
