@@ -5,7 +5,9 @@ Writes ``docs/evaluation.md`` (the committed table) and prints the rows as JSON 
     python -m benchmarks.eval_table            # about 15 minutes on 2 cores
     python -m benchmarks.eval_table --jobs 1 --out -   # print the Markdown instead
 
-Every run is the same as ``openptrack eval --scenario NAME --seed N``.
+Every run is the same as ``openptrack eval --scenario NAME --seed N``. The file's section
+"Is the simulator honest?" (written by hand from ``python -m benchmarks.profile_rates``)
+is kept.
 """
 
 from __future__ import annotations
@@ -21,6 +23,9 @@ import numpy as np
 from openptrack_py.eval.runner import format_markdown
 from openptrack_py.eval.trackers import run_eval
 from openptrack_py.sim import SCENARIO_NAMES, describe_scenarios
+
+KEPT_SECTION = "## Is the simulator honest?"
+"""The heading from which the existing file is kept when the table is rewritten."""
 
 COLUMNS = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "fp", "fn", "gt_objects"]
 SUMMARY = ["mota", "motp", "idf1", "id_switches", "fp", "fn"]
@@ -90,7 +95,11 @@ def main() -> None:
     if args.out == "-":
         sys.stdout.write(text)
     else:
-        Path(args.out).write_text(text)
+        out = Path(args.out)
+        old = out.read_text() if out.exists() else ""
+        if KEPT_SECTION in old:
+            text += "\n" + old[old.index(KEPT_SECTION) :]
+        out.write_text(text)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,9 @@ from openptrack_py.config.base import StrictModel
 ScenarioName = Literal["crowd", "distance", "occlusions", "classroom", "installation", "stress"]
 """Named scenarios (built by :mod:`openptrack_py.sim.scenarios`)."""
 
+ProfileName = Literal["ideal", "realistic", "harsh"]
+"""Named sensor noise profiles (:data:`openptrack_py.sim.profiles.PROFILES`)."""
+
 
 class SimConfig(StrictModel):
     """The simulator node: a scenario played in real time on the network's sim sensors.
@@ -27,6 +30,11 @@ class SimConfig(StrictModel):
         Stop after this much simulated time (forever if omitted).
     speed : float
         Playback speed relative to real time.
+    profile : {"ideal", "realistic", "harsh"}
+        How far the simulated detectors are from perfect (``sensor_model: detections``):
+        ``realistic`` is calibrated from what real people detectors deliver, ``ideal``
+        is the sensor types' noise alone, ``harsh`` a badly calibrated, cluttered room
+        (``openptrack_py.sim.profiles``).
     sensor_model : {"detections", "rgbd"}
         Level of sensor simulation: ``detections`` draws detections directly from the
         ground truth through each sensor's field of view, occlusion and noise model;
@@ -46,6 +54,7 @@ class SimConfig(StrictModel):
     seed: int = Field(0, ge=0, le=2**32 - 1)
     duration_s: float | None = Field(None, gt=0.0)
     speed: float = Field(1.0, gt=0.0, le=100.0)
+    profile: ProfileName = "realistic"
     sensor_model: Literal["detections", "rgbd"] = "detections"
     ground_truth_rate_hz: float = Field(30.0, gt=0.0, le=240.0)
     use_scenario_sensors: bool = False

@@ -1,5 +1,6 @@
 """Simulation: a world of people, virtual sensors and ground truth, without a camera."""
 
+from openptrack_py.sim.profiles import PROFILE_NAMES, PROFILES, NoiseProfile
 from openptrack_py.sim.scenarios import (
     SCENARIO_NAMES,
     Scenario,
@@ -12,8 +13,11 @@ from openptrack_py.sim.world import Obstacle, PersonSpec, Room, World
 
 __all__ = [
     "DEFAULT_START_TIME",
+    "PROFILES",
+    "PROFILE_NAMES",
     "SCENARIO_NAMES",
     "SENSOR_NOISE",
+    "NoiseProfile",
     "Obstacle",
     "PersonSpec",
     "Room",

@@ -16,7 +16,8 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
     """The scenario a network file asks for, with its simulated sensors.
 
     The network's ``source: sim`` sensors replace the scenario's own placement unless
-    ``sim.use_scenario_sensors`` is set or the network lists no simulated sensor.
+    ``sim.use_scenario_sensors`` is set or the network lists no simulated sensor; the
+    sensors' noise profile is ``sim.profile``.
 
     Raises
     ------
@@ -28,7 +29,11 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
     simulated = [s for s in cfg.sensors if s.source == "sim"]
     sensors = None if cfg.sim.use_scenario_sensors or not simulated else simulated
     return build_scenario(
-        cfg.sim.scenario, seed=cfg.sim.seed, duration_s=cfg.sim.duration_s, sensors=sensors
+        cfg.sim.scenario,
+        seed=cfg.sim.seed,
+        duration_s=cfg.sim.duration_s,
+        sensors=sensors,
+        profile=cfg.sim.profile,
     )
 
 

@@ -15,11 +15,14 @@
 ==============  ==========================================================================
 
 The same name, seed and options always give the same people, paths and sensor noise.
+A noise profile (:mod:`~openptrack_py.sim.profiles`: ``ideal``, ``realistic``,
+``harsh``) sets how far the sensors are from perfect; it never changes the people's paths.
 """
 
 from __future__ import annotations
 
 import inspect
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -34,6 +37,9 @@ from openptrack_py.sim.directors import (
     VisitorDirector,
     WaypointDirector,
 )
+from openptrack_py.sim.false_positives import Decoy, place_decoys
+from openptrack_py.sim.profiles import IDEAL, NoiseProfile, resolve_profile
+from openptrack_py.sim.sensor_faults import draw_sensor_faults
 from openptrack_py.sim.sensor_spec import SensorSpec
 from openptrack_py.sim.visibility import SensorView
 from openptrack_py.sim.world import Director, Obstacle, Room, World
@@ -59,6 +65,10 @@ class Scenario:
         Builds the script from the world's random generator.
     description : str
         One line about what happens.
+    profile : NoiseProfile
+        The sensors' noise profile (its per-sensor draws are already in ``sensors``).
+    decoys : tuple of Decoy
+        Static false positives of the room under the profile.
     """
 
     name: str
@@ -68,6 +78,8 @@ class Scenario:
     sensors: tuple[SensorSpec, ...]
     make_director: Callable[[np.random.Generator], Director]
     description: str = ""
+    profile: NoiseProfile = IDEAL
+    decoys: tuple[Decoy, ...] = ()
 
 
 # ------------------------------------------------------------------------ directors
@@ -259,6 +271,7 @@ def build_scenario(
     seed: int = 0,
     duration_s: float | None = -1.0,
     sensors: Sequence[SensorConfig] | None = None,
+    profile: str | NoiseProfile = "ideal",
     **options: int,
 ) -> Scenario:
     """Build a named scenario.
@@ -273,14 +286,18 @@ def build_scenario(
         Run length; the scenario's own default when negative; ``None`` for no end.
     sensors : sequence of SensorConfig, optional
         Replace the scenario's sensors (e.g. those of a network file).
+    profile : {"ideal", "realistic", "harsh"} or NoiseProfile
+        The sensors' noise profile. Its per-sensor draws (calibration and clock offsets,
+        jitter, drops, misses) and the room's decoys come from ``seed``.
     **options
         Scenario parameters: ``people`` (crowd, stress), ``children`` (classroom).
 
     Raises
     ------
     ConfigError
-        For an unknown scenario or option.
+        For an unknown scenario, option or profile.
     """
+    noise = resolve_profile(profile)
     if name not in _BUILDERS:
         raise ConfigError(f"scenario: unknown {name!r} (allowed: {', '.join(SCENARIO_NAMES)})")
     builder, description = _BUILDERS[name]
@@ -302,12 +319,17 @@ def build_scenario(
     room, default_sensors, make_director, default_duration = builder(seed, layout_rng, **options)
     chosen = list(sensors) if sensors else default_sensors
     phase_rng = np.random.default_rng([seed, 7])
+    simulated = [cfg for cfg in chosen if cfg.source == "sim"]
     specs = []
-    for cfg in chosen:
-        if cfg.source != "sim":
-            continue
+    for cfg in simulated:
         rate = cfg.rate_hz or SENSOR_TYPES[cfg.type].rate_hz
         specs.append(SensorSpec.from_config(cfg, phase_s=float(phase_rng.uniform(0, 1.0 / rate))))
+    specs = list(draw_sensor_faults(noise, specs, simulated, seed))
+    decoys: tuple[Decoy, ...] = ()
+    if noise.decoys_per_sensor > 0 and specs:
+        count = math.ceil(noise.decoys_per_sensor * len(specs))
+        views = [SensorView(spec, room) for spec in specs]
+        decoys = place_decoys(room, views, count, np.random.default_rng([seed, 61]))
     if duration_s is not None and duration_s < 0:
         duration_s = default_duration
     return Scenario(
@@ -318,6 +340,8 @@ def build_scenario(
         sensors=tuple(specs),
         make_director=make_director,
         description=description,
+        profile=noise,
+        decoys=decoys,
     )
 
 

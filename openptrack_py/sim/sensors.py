@@ -16,7 +16,12 @@ would find them and where it would put them:
   detection at their mean; rarely one person splits into two blobs;
 * **clutter**: Poisson false positives on free floor in view, with low confidence;
 * **calibration error**: detections are mapped to the world with the pose the sensor
-  *believes*, which may differ from its true pose.
+  *believes*, which may differ from its true pose;
+* a **noise profile** (:mod:`~openptrack_py.sim.profiles`, ``ideal`` by default) adds
+  what real detectors do beyond that: a centroid error that persists per person
+  (:mod:`~openptrack_py.sim.centroid_error`), outliers, half-hidden people detected
+  off-centre, confident false positives, decoys and persistent splits
+  (:mod:`~openptrack_py.sim.false_positives`), a wider merge distance.
 
 Confidence is on ``[0, 1]``; true people score roughly 0.6-0.95 depending on how much of
 them is visible, clutter roughly 0.1-0.5.
@@ -29,14 +34,29 @@ are the simulator's own model (:data:`SENSOR_NOISE`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.messages.detection import Detection
+from openptrack_py.sim.centroid_error import CentroidError
+from openptrack_py.sim.false_positives import (
+    Blob,
+    Decoy,
+    DecoySightings,
+    SplitBlobs,
+    TransientFalsePositives,
+)
+from openptrack_py.sim.profiles import (
+    FALSE_POSITIVE_TYPE_FACTOR,
+    IDEAL,
+    NoiseProfile,
+    resolve_profile,
+)
 from openptrack_py.sim.sensor_spec import APPEARANCE_BINS, SENSOR_NOISE, SensorNoise, SensorSpec
-from openptrack_py.sim.visibility import SensorView
+from openptrack_py.sim.visibility import SensorView, visible_lateral_offset, visible_summary
 from openptrack_py.sim.world import Room, Snapshot
 
 __all__ = [
@@ -58,7 +78,8 @@ class Observation:
     detections : tuple of Detection
         World-frame detections (through the believed pose).
     person_ids : tuple of int
-        Ground-truth person id behind each detection; 0 for clutter.
+        Ground-truth person id behind each detection; 0 for a false detection (clutter,
+        a split blob, a noise profile's false positive or decoy).
     """
 
     detections: tuple[Detection, ...]
@@ -75,9 +96,17 @@ class SensorModel(SensorView):
     room : Room
         The room (for furniture occlusion and clutter placement).
     rng : numpy.random.Generator
-        This sensor's own randomness.
-    merge_distance_m : float
-        People closer than this (centre to centre) come out as one detection.
+        This sensor's own randomness (the profile's mechanisms each use a generator
+        spawned from it, drawn only when the mechanism is on).
+    merge_distance_m : float, optional
+        People closer than this (centre to centre) come out as one detection; the
+        profile's ``merge_distance_m`` if omitted.
+    profile : NoiseProfile or str
+        The noise profile's per-frame mechanisms. Its per-sensor figures (misses,
+        calibration and clock offsets, jitter, drops) are in ``spec``
+        (:func:`~openptrack_py.sim.sensor_faults.draw_sensor_faults`).
+    decoys : sequence of Decoy
+        The scenario's static false positives; the sensor reports those it can see.
     """
 
     def __init__(
@@ -85,11 +114,17 @@ class SensorModel(SensorView):
         spec: SensorSpec,
         room: Room,
         rng: np.random.Generator,
-        merge_distance_m: float = 0.3,
+        merge_distance_m: float | None = None,
+        *,
+        profile: NoiseProfile | str = IDEAL,
+        decoys: Sequence[Decoy] = (),
     ) -> None:
         super().__init__(spec, room)
         self.rng = rng
-        self.merge_distance_m = merge_distance_m
+        self.profile = p = resolve_profile(profile)
+        self.merge_distance_m = (
+            p.merge_distance_m if merge_distance_m is None else merge_distance_m
+        )
         believed = spec.pose.model_copy(
             update={
                 "x": spec.pose.x + spec.pose_error.dx,
@@ -99,6 +134,25 @@ class SensorModel(SensorView):
         )
         # true world -> camera -> world as the sensor believes it to be placed
         self.reported_from_world = world_from_optical(believed) @ self.camera_from_world
+        self._centroid: CentroidError | None = None
+        self._transients: TransientFalsePositives | None = None
+        self._decoys: DecoySightings | None = None
+        self._splits: SplitBlobs | None = None
+        self._extra_rng = rng
+        if p == IDEAL:
+            return
+        centroid_rng, transient_rng, decoy_rng, split_rng, self._extra_rng = rng.spawn(5)
+        if p.centroid_error:
+            self._centroid = CentroidError(p, spec.noise, centroid_rng)
+        if p.false_positives_per_frame > 0:
+            self._transients = TransientFalsePositives(self, p, transient_rng)
+        if decoys and p.decoy_detection_probability > 0:
+            self._decoys = DecoySightings(self, decoys, p, decoy_rng)
+        if p.split_duration_s > 0:
+            chance = spec.noise.split_probability
+            if p.split_probability is not None:
+                chance = p.split_probability * FALSE_POSITIVE_TYPE_FACTOR[spec.type.name]
+            self._splits = SplitBlobs(chance, p.split_duration_s, split_rng)
 
     def _miss_probability(self, distance: np.ndarray) -> np.ndarray:
         kind = self.spec.type
@@ -109,50 +163,97 @@ class SensorModel(SensorView):
 
     def observe(self, snap: Snapshot) -> Observation:
         """Simulate one frame of the detector on the world state ``snap``."""
-        rng = self.rng
-        kind = self.spec.type
-        noise = self.spec.noise
         positions: list[np.ndarray] = []
         heights: list[float] = []
         confidences: list[float] = []
         person_ids: list[int] = []
         source_rows: list[int] = []
+        lists = (positions, heights, confidences, person_ids, source_rows)
+        extra: list[Blob] = []  # the profile's false detections
+        if len(snap):
+            self._detect(snap, *lists)
+            if positions:
+                self._merge(snap, *lists)
+                if self._splits is not None:
+                    extra += self._splits.blobs(snap.t, person_ids, positions, heights)
+                else:
+                    self._split(*lists)
+        self._clutter(*lists)
+        if self._transients is not None:
+            extra += self._transients.blobs(snap.t)
+        if self._decoys is not None:
+            extra += self._decoys.blobs(snap.t)
+        return self._finish(snap, *lists, extra=extra)
 
+    def _detect(
+        self,
+        snap: Snapshot,
+        positions: list[np.ndarray],
+        heights: list[float],
+        confidences: list[float],
+        person_ids: list[int],
+        rows: list[int],
+    ) -> None:
+        """Who of ``snap`` the detector finds this frame, where and how confidently."""
+        rng = self.rng
+        kind = self.spec.type
+        noise = self.spec.noise
+        scale = self.profile.noise_scale
         n = len(snap)
-        if n:
-            head_visible, fraction = self.visibility(snap)
-            centroid = np.column_stack([snap.pos, 0.55 * snap.height])
-            distance = np.linalg.norm(centroid - self.origin, axis=1)
-            p_detect = (1.0 - self._miss_probability(distance)) * np.clip(
-                (fraction - 0.25) / 0.45, 0.0, 1.0
-            )
-            p_detect[~head_visible] = 0.0
-            detected = np.flatnonzero(rng.random(n) < p_detect)
-            if len(detected):
-                ray = snap.pos[detected] - self.origin[:2]
-                ray /= np.maximum(np.linalg.norm(ray, axis=1, keepdims=True), 1e-9)
-                side = np.column_stack([-ray[:, 1], ray[:, 0]])
-                sigma = noise.depth_sigma_at(distance[detected])
-                along = rng.normal(0.0, 1.0, len(detected)) * sigma
-                across = rng.normal(0.0, noise.lateral_sigma_m, len(detected))
-                xy = snap.pos[detected] + along[:, None] * ray + across[:, None] * side
-                frac = fraction[detected]
-                # with the legs hidden the visible centroid rides higher
-                z = snap.height[detected] * (0.55 + 0.15 * (1.0 - frac))
-                z = z + rng.normal(0.0, 0.03, len(detected))
-                h = snap.height[detected] + rng.normal(0.0, noise.height_sigma_m, len(detected))
-                far = np.maximum(distance[detected] - kind.reliable_range_m, 0.0)
-                conf = 0.55 + 0.35 * frac - 0.04 * far + rng.normal(0.0, 0.06, len(detected))
-                for j, row in enumerate(detected):
-                    positions.append(np.array([xy[j, 0], xy[j, 1], z[j]]))
-                    heights.append(float(h[j]))
-                    confidences.append(float(np.clip(conf[j], 0.3, 1.0)))
-                    person_ids.append(int(snap.ids[row]))
-                    source_rows.append(int(row))
-                self._merge(snap, positions, heights, confidences, person_ids, source_rows)
-                self._split(positions, heights, confidences, person_ids, source_rows)
-        self._clutter(positions, heights, confidences, person_ids, source_rows)
-        return self._finish(snap, positions, heights, confidences, person_ids, source_rows)
+        mask = self.visibility_mask(snap)
+        head_visible, fraction = visible_summary(mask)
+        centroid = np.column_stack([snap.pos, 0.55 * snap.height])
+        distance = np.linalg.norm(centroid - self.origin, axis=1)
+        p_detect = (1.0 - self._miss_probability(distance)) * np.clip(
+            (fraction - 0.25) / 0.45, 0.0, 1.0
+        )
+        p_detect[~head_visible] = 0.0
+        detected = np.flatnonzero(rng.random(n) < p_detect)
+        if not len(detected):
+            return
+        ray = snap.pos[detected] - self.origin[:2]
+        ray /= np.maximum(np.linalg.norm(ray, axis=1, keepdims=True), 1e-9)
+        side = np.column_stack([-ray[:, 1], ray[:, 0]])
+        sigma = noise.depth_sigma_at(distance[detected]) * scale
+        along = rng.normal(0.0, 1.0, len(detected)) * sigma
+        across = rng.normal(0.0, noise.lateral_sigma_m * scale, len(detected))
+        xy = snap.pos[detected] + along[:, None] * ray + across[:, None] * side
+        if self._centroid is not None:
+            xy += self._centroid.sample(snap.t, snap.ids[detected], distance[detected])
+        if self.profile.occlusion_shift > 0:
+            # the centroid of the points the sensor sees: off-centre when partly hidden
+            lateral = visible_lateral_offset(mask[detected]) * snap.radius[detected]
+            xy += (self.profile.occlusion_shift * lateral)[:, None] * side
+        frac = fraction[detected]
+        # with the legs hidden the visible centroid rides higher
+        z = snap.height[detected] * (0.55 + 0.15 * (1.0 - frac))
+        z = z + rng.normal(0.0, 0.03, len(detected))
+        h = snap.height[detected] + rng.normal(0.0, noise.height_sigma_m, len(detected))
+        far = np.maximum(distance[detected] - kind.reliable_range_m, 0.0)
+        conf = 0.55 + 0.35 * frac - 0.04 * far + rng.normal(0.0, 0.06, len(detected))
+        for j, row in enumerate(detected):
+            positions.append(np.array([xy[j, 0], xy[j, 1], z[j]]))
+            heights.append(float(h[j]))
+            confidences.append(float(np.clip(conf[j], 0.3, 1.0)))
+            person_ids.append(int(snap.ids[row]))
+            rows.append(int(row))
+
+    @staticmethod
+    def _add(
+        blobs: Sequence[Blob],
+        positions: list[np.ndarray],
+        heights: list[float],
+        confidences: list[float],
+        person_ids: list[int],
+        rows: list[int],
+    ) -> None:
+        """Append false detections (no person behind them)."""
+        for xyz, height, confidence in blobs:
+            positions.append(xyz)
+            heights.append(height)
+            confidences.append(confidence)
+            person_ids.append(0)
+            rows.append(-1)
 
     def _merge(
         self,
@@ -194,8 +295,10 @@ class SensorModel(SensorView):
         person_ids: list[int],
         rows: list[int],
     ) -> None:
-        """Rarely, a person also yields a spurious second blob beside them."""
-        p = self.spec.noise.split_probability
+        """Rarely, a person also yields a spurious second blob beside them (one frame)."""
+        p = self.profile.split_probability
+        if p is None:
+            p = self.spec.noise.split_probability
         for i in range(len(rows)):
             if self.rng.random() >= p:
                 continue
@@ -240,7 +343,15 @@ class SensorModel(SensorView):
         confidences: list[float],
         person_ids: list[int],
         rows: list[int],
+        extra: Sequence[Blob] = (),
     ) -> Observation:
+        """The frame's detections through the believed pose, with boxes and appearance.
+
+        ``extra`` (the profile's false detections) come last, with their appearance from
+        their own generator, so that they never change the sensor's other draws.
+        """
+        base = len(rows)
+        self._add(extra, positions, heights, confidences, person_ids, rows)
         if not positions:
             return Observation((), ())
         true_world = np.array(positions)
@@ -254,7 +365,13 @@ class SensorModel(SensorView):
         radius[real] = snap.radius[row_idx[real]]
         height = np.clip(np.array(heights), 0.0, 10.0)
         boxes = self._boxes(true_world[:, :2], height, radius).tolist()
-        looks = self._appearance(snap, row_idx).tolist()
+        looks = np.zeros((0, APPEARANCE_BINS), dtype=int)
+        if base:
+            looks = self._appearance(snap, row_idx[:base], self.rng)
+        if len(rows) > base:
+            fake = self._appearance(snap, row_idx[base:], self._extra_rng)
+            looks = np.vstack([looks, fake])
+        looks = looks.tolist()
         conf = np.clip(np.array(confidences), 0.0, 1.0).tolist()
         rep = reported.tolist()
         dist = distance.tolist()
@@ -294,9 +411,10 @@ class SensorModel(SensorView):
         v0, v1 = v.min(axis=1).astype(int), v.max(axis=1).astype(int)
         return np.column_stack([u0, v0, u1 - u0, v1 - v0])
 
-    def _appearance(self, snap: Snapshot, rows: np.ndarray) -> np.ndarray:
+    def _appearance(
+        self, snap: Snapshot, rows: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
         """Quantised hue histograms of the visible clothing (noise for clutter)."""
-        rng = self.rng
         n = len(rows)
         hist = np.full((n, APPEARANCE_BINS), 0.02)
         real = rows >= 0

@@ -90,7 +90,13 @@ def _detection_models(
     specs = scenario.sensors
     _, sensor_seq = np.random.SeedSequence(scenario.seed).spawn(2)
     return [
-        SensorModel(spec, scenario.room, np.random.default_rng(seq))
+        SensorModel(
+            spec,
+            scenario.room,
+            np.random.default_rng(seq),
+            profile=scenario.profile,
+            decoys=scenario.decoys,
+        )
         for spec, seq in zip(specs, sensor_seq.spawn(len(specs)), strict=True)
     ]
 

@@ -167,11 +167,18 @@ class SensorView:
             hidden |= crosses & (np.minimum(z_low, z_high) < top)
         return hidden
 
-    def visibility(self, snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:
-        """Per person: whether the head is visible, and the visible body fraction."""
+    def visibility_mask(self, snap: Snapshot) -> np.ndarray:
+        """Per person and body sample point (:data:`BODY_POINTS`): whether the sensor sees it.
+
+        Returns
+        -------
+        ndarray of bool, shape (n, K)
+            Row ``i`` is person ``i``; a point is seen when it is inside the field of view
+            and depth range and no other person or piece of furniture hides it.
+        """
         n = len(snap)
         if n == 0:
-            return np.zeros(0, dtype=bool), np.zeros(0)
+            return np.zeros((0, len(BODY_POINTS)), dtype=bool)
         points, _ = self._body_points(snap)
         k = points.shape[1]
         flat = points.reshape(-1, 3)
@@ -188,7 +195,59 @@ class SensorView:
                 flat[candidates], remap[owner], snap.pos[blockers], snap.radius[blockers],
                 snap.height[blockers],
             )  # fmt: skip
-        visible = visible.reshape(n, k)
-        weights = BODY_POINTS[:, 2]
-        fraction = (visible * weights).sum(axis=1) / weights.sum()
-        return visible[:, HEAD], fraction
+        return visible.reshape(n, k)
+
+    def visibility(self, snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:
+        """Per person: whether the head is visible, and the visible body fraction."""
+        return visible_summary(self.visibility_mask(snap))
+
+    def sees(self, points: np.ndarray) -> np.ndarray:
+        """Mask of world points ``(M, 3)`` in view and not hidden by furniture (people ignored)."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        seen = self.in_view(points)
+        candidates = np.flatnonzero(seen)
+        if len(candidates):
+            none = np.zeros((0, 2))
+            seen[candidates] &= ~self._occluded(
+                points[candidates], np.full(len(candidates), -1), none, np.zeros(0), np.zeros(0)
+            )
+        return seen
+
+
+def visible_summary(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether the head is visible, and the visible body fraction, from a visibility mask.
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (n, K)
+        As returned by :meth:`SensorView.visibility_mask`.
+    """
+    if len(mask) == 0:
+        return np.zeros(0, dtype=bool), np.zeros(0)
+    weights = BODY_POINTS[:, 2]
+    fraction = (mask * weights).sum(axis=1) / weights.sum()
+    return mask[:, HEAD], fraction
+
+
+def visible_lateral_offset(mask: np.ndarray) -> np.ndarray:
+    """Sideways offset of the visible body points' centroid, in body radii.
+
+    The mean lateral position (:data:`BODY_POINTS`, positive to the left as the sensor
+    looks) of the weighted visible sample points; 0 for a fully visible or a fully hidden
+    person. A detector that takes the centroid of the points it sees puts a half-hidden
+    person off-centre, towards their visible side.
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (n, K)
+        As returned by :meth:`SensorView.visibility_mask`.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The offset of each person, in body radii.
+    """
+    weights = BODY_POINTS[:, 2] * mask
+    total = weights.sum(axis=1)
+    lateral = (weights * BODY_POINTS[:, 1]).sum(axis=1)
+    return np.where(total > 0, lateral / np.maximum(total, 1e-12), 0.0)
