@@ -57,6 +57,9 @@ class TrackerConfig(StrictModel):
         it is confirmed: people walk, while false positives that recur at one place (a
         coat rack, a poster board, a fan) do not (0 disables; a person standing still
         from the start is then confirmed once they move).
+    birth_min_separation_m : float
+        A detection closer than this to a confirmed track never starts a new track: two
+        people's centres are never that close (a people detector merges them first).
     birth_gate_probability : float
         A detection within ``chi2.ppf(birth_gate_probability, dof)`` of any track never
         starts a new track (a detection that track could have produced); at least
@@ -82,6 +85,10 @@ class TrackerConfig(StrictModel):
     publish_unseen_s : float
         Confirmed tracks unseen for longer are kept (so the person gets the same id
         back when seen again before ``sec_before_old``) but not published.
+    publish_min_support : float
+        Confirmed tracks whose support (see ``support_rate``) has fallen below this are
+        kept, with their id, but not published: a track that the sensors covering its
+        place have stopped seeing (a person's track left on a static false positive).
     reorder_window_s : float
         How long a batch may wait for batches of other sensors captured earlier; 0
         applies batches in arrival order. Batches are released sooner when every other
@@ -116,9 +123,18 @@ class TrackerConfig(StrictModel):
     merge_distance_m : float
         Two confirmed tracks closer than this, moving alike, both being detected and
         never detected in one sensor frame together, follow one person.
+    merge_max_speed_difference_mps : float
+        Largest difference of the two tracks' velocities (a crossing differs by twice a
+        walking speed).
     merge_after_s : float
         How long they must stay so before they are merged into the older one (0
         disables merging).
+    keepalive_min_support : float
+        A confident detection keeps a track alive only while the track's support (before
+        that detection) is at least this: a lost track whose gate has grown wide, or a
+        track left on a static false positive, cannot live on a confident false
+        detection now and then, while a person seen again after an occlusion regains
+        support within a few frames.
     support_rate : float
         Weight of one expected sensor frame in a track's support (the exponential
         average of detected / expected frames).
@@ -139,6 +155,7 @@ class TrackerConfig(StrictModel):
     confirm_min_support: float = Field(0.5, ge=0.0, le=1.0)
     confirm_min_displacement_m: float = Field(0.5, ge=0.0, le=10.0)
     birth_gate_probability: float = Field(0.9999, ge=0.5, le=0.999999)
+    birth_min_separation_m: float = Field(0.4, ge=0.0, le=2.0)
     sec_before_fake: float = Field(2.4, gt=0.0, le=60.0)
     tentative_timeout_s: float = Field(0.5, gt=0.0, le=60.0)
     sec_before_old: float = Field(3.0, gt=0.0, le=600.0)
@@ -147,6 +164,7 @@ class TrackerConfig(StrictModel):
     height_smoothing: float = Field(0.1, gt=0.0, le=1.0)
     publish_tentative: bool = False
     publish_unseen_s: float = Field(0.5, ge=0.0, le=600.0)
+    publish_min_support: float = Field(0.0, ge=0.0, le=1.0)
     reorder_window_s: float = Field(0.05, ge=0.0, le=2.0)
     late_policy: Literal["replay", "drop"] = "replay"
     max_lateness_s: float = Field(1.0, ge=0.0, le=10.0)
@@ -160,7 +178,9 @@ class TrackerConfig(StrictModel):
     max_bias_m: float = Field(0.5, ge=0.0, le=5.0)
     merge_distance_m: float = Field(0.35, ge=0.0, le=2.0)
     merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
-    support_rate: float = Field(0.2, gt=0.0, le=1.0)
+    merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
+    support_rate: float = Field(0.1, gt=0.0, le=1.0)
+    keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
 
     @model_validator(mode="after")
     def _birth_gate_outside_gate(self) -> TrackerConfig:

@@ -126,12 +126,19 @@ class SensorModel(Protocol):
     def learn(
         self,
         sensor_id: str,
-        innovation: np.ndarray,
-        d2: np.ndarray,
+        detected: np.ndarray,
+        predicted: np.ndarray,
+        track_var: np.ndarray,
+        model_var: np.ndarray,
         gate: float,
         multi_sensor: np.ndarray,
     ) -> None:
-        """Learn from unambiguous updates of confirmed tracks by one batch."""
+        """Learn from unambiguous updates of confirmed tracks by one batch.
+
+        ``detected (k, 2)`` (corrected) and the ``predicted (k, 2)`` track positions;
+        per pair the track's predicted position variance and the configured measurement
+        variance (per axis); the gate's chi-square threshold.
+        """
 
 
 class Merger(Protocol):

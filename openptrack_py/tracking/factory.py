@@ -41,6 +41,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             min_age_s=cfg.confirm_min_age_s,
             min_support=cfg.confirm_min_support,
             min_displacement_m=cfg.confirm_min_displacement_m,
+            min_separation_m=cfg.birth_min_separation_m,
         ),
         deleter=TimeDeleter(cfg.sec_before_fake, cfg.sec_before_old, cfg.tentative_timeout_s),
         sensors=OnlineSensorModel(
@@ -49,7 +50,9 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             scale_bounds=(cfg.noise_scale_min, cfg.noise_scale_max),
             max_bias_m=cfg.max_bias_m,
         ),
-        merger=TrackMerger(cfg.merge_distance_m, cfg.merge_after_s),
+        merger=TrackMerger(
+            cfg.merge_distance_m, cfg.merge_after_s, cfg.merge_max_speed_difference_mps
+        ),
         identity=NullIdentity(),
         detector_weight=cfg.detector_weight,
         min_confidence_detections=cfg.min_confidence_detections,
@@ -60,9 +63,11 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
         height_smoothing=cfg.height_smoothing,
         publish_tentative=cfg.publish_tentative,
         publish_unseen_s=cfg.publish_unseen_s,
+        publish_min_support=cfg.publish_min_support,
         late_policy=cfg.late_policy,
         max_lateness_s=cfg.max_lateness_s,
         max_replay_steps=cfg.max_replay_steps,
         max_tracks=cfg.max_tracks,
         support_rate=cfg.support_rate,
+        keepalive_min_support=cfg.keepalive_min_support,
     )

@@ -3,9 +3,10 @@
 Confirmation asks for *consistent evidence*, not a count of anything:
 
 * **birth**: a confident detection starts a tentative track only if it lies outside the
-  *birth gate* of every track, a wider chi-square gate than association's: a detection
-  that an existing track could have produced (a noisy detection of a tracked person, a
-  second sensor's view of them) never starts a second track;
+  *birth gate* of every track, a wider chi-square gate than association's, and no closer
+  to a confirmed track than two people can stand: a detection that an existing track
+  could have produced (a noisy detection of a tracked person, a second sensor's view of
+  them, offset by its calibration) never starts a second track;
 * **hits over time**: ``detections_to_validate`` confident detections, spread over at
   least ``min_age_s``, so that three sensors seeing one blob in the same instant are not
   enough;
@@ -51,6 +52,10 @@ class ConfidenceInitiator:
         Least :attr:`TrackTable.support` at confirmation.
     min_displacement_m : float
         Least distance from where the track started to where it is at confirmation.
+    min_separation_m : float
+        A detection closer than this to a confirmed track never starts a track: two
+        people's centres are never that close (the detector merges them first), so it
+        is that person, seen by another sensor or off-centre.
     """
 
     min_confidence: float
@@ -59,14 +64,28 @@ class ConfidenceInitiator:
     min_age_s: float = 0.0
     min_support: float = 0.0
     min_displacement_m: float = 0.0
+    min_separation_m: float = 0.0
 
-    def initiate(self, dets: DetectionArrays, assigned: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    def initiate(
+        self,
+        dets: DetectionArrays,
+        assigned: np.ndarray,
+        d2: np.ndarray,
+        table: TrackTable | None = None,
+    ) -> np.ndarray:
         """Indices of the detections that start new tracks.
 
         ``d2 (n_tracks, n_detections)`` are the squared Mahalanobis distances of every
-        pair under the tracks' predicted innovation covariances.
+        pair under the tracks' predicted innovation covariances; ``table`` the tracks
+        (for the least separation from a confirmed one).
         """
         explained = (d2 <= self.birth_gate).any(axis=0) if len(d2) else np.zeros(len(dets), bool)
+        if self.min_separation_m > 0 and table is not None and table.confirmed.any():
+            xy = table.x[table.confirmed, 0:2]
+            gap = np.hypot(
+                dets.xy[:, None, 0] - xy[None, :, 0], dets.xy[:, None, 1] - xy[None, :, 1]
+            )
+            explained |= (gap < self.min_separation_m).any(axis=1)
         confident = dets.confidence >= self.min_confidence
         return np.flatnonzero(~assigned & ~explained & confident)
 
@@ -78,7 +97,8 @@ class ConfidenceInitiator:
         if self.min_support > 0:
             ready &= table.support >= self.min_support
         if self.min_displacement_m > 0:
-            moved = np.hypot(*(table.x[:, 0:2] - table.birth_xy).T)
+            # measured on the detections, not the filter (which drifts while unseen)
+            moved = np.hypot(*(table.recent_xy - table.birth_xy).T)
             ready &= (moved >= self.min_displacement_m) | table.reborn
         return table.confirmed | ready
 

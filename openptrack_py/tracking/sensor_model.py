@@ -14,17 +14,20 @@ the innovations of the confirmed tracks it updates:
   that truncation (a plain average of gated distances can never exceed the gate and
   would never widen it). Only unambiguous pairs count (one detection in the track's
   gate, one track in the detection's), ``s`` is bounded, and it is re-estimated every
-  few dozen samples from the last few hundred. A sensor noisier than configured widens
-  its own gate instead of spawning tracks.
-* a **bias**: the mean offset of the sensor's detections from the fused tracks, learned
-  only where at least two sensors see the track (one sensor alone defines its track),
-  bounded, and removed from its detections before association. What one bias cannot
-  tell from a shift of the whole world is fixed by keeping the sample-weighted mean of
-  all sensors' biases at zero. This is the quantity calibration refinement needs.
-* a **coverage** map: the floor cells where a sensor has ever reported a detection.
-  It tells which sensors should see a track, so a person seen by only one of three
-  overlapping sensors counts as weaker evidence. It is a union over the batches seen,
-  the same in whatever order they are applied, so replays need not restore it.
+  few dozen samples from the last few hundred, with the track's own uncertainty
+  taken into account (the innovation's variance is the track's plus the sensor's). A
+  sensor noisier than configured widens its own gate instead of spawning tracks.
+* an **alignment**: the floor rotation and translation that map the sensor's detections
+  onto the fused tracks (:class:`~openptrack_py.tracking.alignment.RigidAlignment`),
+  learned only where at least two sensors see the track (one sensor alone defines its
+  track), bounded, and applied to its detections before association. A rotation or
+  shift of every sensor at once is invisible; it is fixed by keeping the sensors' mean
+  map the identity. This is the quantity calibration refinement needs.
+* a **coverage** map: the floor cells where a sensor has reported at least a few
+  detections. It tells which sensors should see a track, so a person seen by only one
+  of three overlapping sensors counts as weaker evidence. Each batch counts once (by
+  its sequence number), in whatever order batches are applied, so replays need not
+  restore it.
 
 :class:`StaticSensorModel` learns nothing (every sensor as configured).
 """
@@ -37,10 +40,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from openptrack_py.tracking.alignment import RigidAlignment, rotation
 from openptrack_py.tracking.state import DetectionArrays
 
 COVERAGE_CELL_M = 0.5
 """Side of a coverage cell, metres."""
+COVERAGE_MIN_DETECTIONS = 5
+"""Detections a sensor must have reported in a cell before it is known to see it."""
 
 
 @dataclass
@@ -48,50 +54,40 @@ class _SensorState:
     """Everything learned about one sensor (copied whole by :meth:`snapshot`)."""
 
     scale: float = 1.0
-    bias: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    bias_samples: float = 0.0
-    # ring buffer of (u, c): gated distances rescaled to the model, and their truncation
-    u: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    c: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    align: RigidAlignment = field(default_factory=RigidAlignment)
+    since_align: int = 0
+    # ring buffer of gated innovations: (|nu|^2, track variance, model variance, cut)
+    samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     head: int = 0
     since_fit: int = 0
 
     def copy(self) -> _SensorState:
-        return replace(self, bias=self.bias.copy(), u=self.u.copy(), c=self.c.copy())
+        return replace(self, align=self.align.copy(), samples=self.samples.copy())
 
 
-def _chi2_logpdf_logcdf(x: np.ndarray, dof: int) -> tuple[np.ndarray, np.ndarray]:
-    """Closed forms of the chi-square log density and log distribution for 2 or 4 dof."""
-    half = x / 2.0
-    if dof == 2:
-        return -math.log(2.0) - half, np.log(-np.expm1(-half))
-    if dof == 4:
-        with np.errstate(divide="ignore"):
-            logpdf = np.log(x / 4.0) - half
-        return logpdf, np.log(-np.expm1(-half) - half * np.exp(-half))
-    raise ValueError(f"truncated_scale: dof must be 2 or 4, got {dof}")
+def gated_noise_scale(samples: np.ndarray, bounds: tuple[float, float]) -> float:
+    """Maximum-likelihood noise scale ``s`` from gated 2-D innovations.
 
-
-def truncated_scale(u: np.ndarray, c: np.ndarray, dof: int, bounds: tuple[float, float]) -> float:
-    """Maximum-likelihood scale ``s`` of samples ``u ~ s * chi2(dof)`` truncated at ``c``.
+    Each sample is ``(q, p, r, c)``: the squared norm ``q = |nu|^2`` of an innovation
+    whose covariance is ``(p + s r) I`` (``p`` the track's predicted position variance,
+    ``r`` the configured measurement variance, both per axis), kept only because
+    ``q <= c`` (the gate). So ``q / (p + s r)`` is chi-square with 2 degrees of freedom,
+    truncated at ``c / (p + s r)``: the likelihood accounts for the gate, without which
+    the gated samples could never tell that the gate is too narrow.
 
     Parameters
     ----------
-    u : ndarray
-        Samples (squared Mahalanobis distances under the unit-scale model).
-    c : ndarray
-        Each sample's truncation point (the gate, under the unit-scale model).
-    dof : int
-        Degrees of freedom: 2 (a floor position) or 4 (position and velocity).
+    samples : ndarray
+        ``(n, 4)`` rows ``(q, p, r, c)``.
     bounds : (float, float)
         Least and largest scale returned.
     """
+    q, p, r, c = samples.T
 
     def nll(log_s: float) -> float:
-        s = math.exp(log_s)
-        logpdf, _ = _chi2_logpdf_logcdf(u / s, dof)
-        _, logcdf = _chi2_logpdf_logcdf(c / s, dof)
-        return -float(np.sum(logpdf - log_s - logcdf))
+        two_var = 2.0 * (p + math.exp(log_s) * r)
+        kept = -np.expm1(-c / two_var)  # chi2(2) distribution at the cut
+        return float(np.sum(np.log(two_var) + q / two_var + np.log(np.maximum(kept, 1e-300))))
 
     lo, hi = math.log(bounds[0]), math.log(bounds[1])
     res = minimize_scalar(nll, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3})
@@ -106,13 +102,17 @@ class OnlineSensorModel:
     adapt_noise : bool
         Estimate each sensor's noise scale.
     estimate_bias : bool
-        Estimate and remove each sensor's bias.
+        Estimate and remove each sensor's misalignment (rotation and shift on the floor).
     scale_bounds : (float, float)
         Least and largest noise scale (on the covariance).
     max_bias_m : float
-        Largest bias, metres.
-    bias_rate : float
-        Weight of one sample in the bias's exponential average.
+        Largest shift of the sensor's detections (where they were learned), metres.
+    max_rotation_deg : float
+        Largest rotation.
+    align_memory : float
+        Pairs remembered by the alignment (exponential forgetting).
+    align_every : int
+        New pairs between two alignment fits.
     window : int
         Gated distances kept per sensor for the noise scale.
     refit_every : int
@@ -128,7 +128,9 @@ class OnlineSensorModel:
         estimate_bias: bool = True,
         scale_bounds: tuple[float, float] = (0.25, 25.0),
         max_bias_m: float = 0.5,
-        bias_rate: float = 0.01,
+        max_rotation_deg: float = 5.0,
+        align_memory: float = 2000.0,
+        align_every: int = 30,
         window: int = 300,
         refit_every: int = 30,
         min_samples: int = 60,
@@ -142,29 +144,31 @@ class OnlineSensorModel:
         self.estimate_bias = estimate_bias
         self.scale_bounds = scale_bounds
         self.max_bias_m = max_bias_m
-        self.bias_rate = bias_rate
+        self.max_rotation = math.radians(max_rotation_deg)
+        self.align_memory = align_memory
+        self.align_every = align_every
         self.window = window
         self.refit_every = refit_every
         self.min_samples = min_samples
         self._sensors: dict[str, _SensorState] = {}
-        self._coverage: dict[str, set[tuple[int, int]]] = {}
+        self._coverage: dict[str, dict[tuple[int, int], int]] = {}
+        self._coverage_seq: dict[str, set[int]] = {}
 
     # ------------------------------------------------------------------ state
 
-    def snapshot(self) -> tuple[dict[str, _SensorState], dict[str, set[tuple[int, int]]]]:
-        """The learned noise and bias of every sensor, and the coverage.
+    def snapshot(self) -> tuple[dict[str, _SensorState], object]:
+        """The learned noise and alignment of every sensor, and the coverage.
 
-        The coverage is shared, not copied: it only ever grows by the cells of the
-        batches seen, the same whatever their order, so a replay re-adds what it has.
+        The coverage is shared, not copied: each batch adds to it once, whatever the
+        order, so a replay has nothing to undo.
         """
-        return {name: st.copy() for name, st in self._sensors.items()}, self._coverage
+        states = {name: st.copy() for name, st in self._sensors.items()}
+        return states, (self._coverage, self._coverage_seq)
 
-    def restore(
-        self, state: tuple[dict[str, _SensorState], dict[str, set[tuple[int, int]]]]
-    ) -> None:
+    def restore(self, state: tuple[dict[str, _SensorState], object]) -> None:
         """Return to a snapshot."""
         self._sensors = {name: st.copy() for name, st in state[0].items()}
-        self._coverage = state[1]
+        self._coverage, self._coverage_seq = state[1]  # type: ignore[misc]
 
     # ------------------------------------------------------------------ queries
 
@@ -173,27 +177,44 @@ class OnlineSensorModel:
         st = self._sensors.get(sensor_id)
         return st.scale if st is not None else 1.0
 
-    def bias(self, sensor_id: str) -> np.ndarray:
-        """Estimated bias of a sensor (metres, world frame)."""
+    def alignment(self, sensor_id: str) -> tuple[float, np.ndarray]:
+        """A sensor's learned correction: rotation (radians) and translation (metres).
+
+        A raw detection ``z`` is corrected to ``R(theta) z + shift``.
+        """
         st = self._sensors.get(sensor_id)
-        return st.bias.copy() if st is not None else np.zeros(2)
+        if st is None:
+            return 0.0, np.zeros(2)
+        return st.align.theta, st.align.shift.copy()
+
+    def bias(self, sensor_id: str) -> np.ndarray:
+        """Mean offset of a sensor's raw detections from the fused tracks (metres)."""
+        st = self._sensors.get(sensor_id)
+        if st is None or st.align.weight <= 0:
+            return np.zeros(2)
+        c = st.align.centroid()
+        return c - st.align.apply(c[None])[0]
 
     def summary(self) -> dict[str, dict[str, float]]:
-        """Per sensor: noise scale and bias, for stats and logs."""
-        return {
-            name: {"noise_scale": st.scale, "bias_x_m": st.bias[0], "bias_y_m": st.bias[1]}
-            for name, st in sorted(self._sensors.items())
-        }
+        """Per sensor: noise scale and alignment, for stats and logs."""
+        out = {}
+        for name, st in sorted(self._sensors.items()):
+            bias = self.bias(name)
+            out[name] = {
+                "noise_scale": st.scale,
+                "rotation_deg": math.degrees(st.align.theta),
+                "bias_x_m": float(bias[0]),
+                "bias_y_m": float(bias[1]),
+            }
+        return out
 
     def correct(self, dets: DetectionArrays) -> DetectionArrays:
-        """The detections with their sensor's bias removed; marks the sensor's coverage."""
-        if len(dets):
-            cells = self._coverage.setdefault(dets.sensor_id, set())
-            cells.update(map(tuple, np.floor(dets.xy / COVERAGE_CELL_M).astype(int).tolist()))
+        """The detections with their sensor's misalignment removed; marks its coverage."""
+        self._mark_coverage(dets)
         st = self._sensors.get(dets.sensor_id)
-        if st is None or not st.bias.any() or not len(dets):
+        if st is None or st.align.weight <= 0 or not len(dets):
             return dets
-        return replace(dets, xy=dets.xy - st.bias)
+        return replace(dets, xy=st.align.apply(dets.xy))
 
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` where this sensor has reported people."""
@@ -201,15 +222,34 @@ class OnlineSensorModel:
         if not cells or not len(xy):
             return np.zeros(len(xy), dtype=bool)
         keys = np.floor(xy / COVERAGE_CELL_M).astype(int).tolist()
-        return np.array([tuple(k) in cells for k in keys], dtype=bool)
+        least = COVERAGE_MIN_DETECTIONS
+        return np.array([cells.get((k[0], k[1]), 0) >= least for k in keys], dtype=bool)
+
+    def _mark_coverage(self, dets: DetectionArrays) -> None:
+        """Count the batch's detections in their cells, once per batch."""
+        if not len(dets):
+            return
+        seen = self._coverage_seq.setdefault(dets.sensor_id, set())
+        if dets.seq >= 0:
+            if dets.seq in seen:
+                return  # a replay: counted already
+            seen.add(dets.seq)
+            if len(seen) > 4096:  # only the last moments can be replayed
+                floor = max(seen) - 2048
+                seen.difference_update([q for q in seen if q < floor])
+        cells = self._coverage.setdefault(dets.sensor_id, {})
+        for key in map(tuple, np.floor(dets.xy / COVERAGE_CELL_M).astype(int).tolist()):
+            cells[key] = cells.get(key, 0) + 1
 
     # ----------------------------------------------------------------- learning
 
     def learn(
         self,
         sensor_id: str,
-        innovation: np.ndarray,
-        d2: np.ndarray,
+        detected: np.ndarray,
+        predicted: np.ndarray,
+        track_var: np.ndarray,
+        model_var: np.ndarray,
         gate: float,
         multi_sensor: np.ndarray,
     ) -> None:
@@ -219,54 +259,84 @@ class OnlineSensorModel:
         ----------
         sensor_id : str
             The batch's sensor.
-        innovation : ndarray
-            ``(k, 2)`` detection minus predicted position (bias already removed).
-        d2 : ndarray
-            ``(k,)`` their squared Mahalanobis distances under the scaled noise.
+        detected : ndarray
+            ``(k, 2)`` the detections, as corrected by :meth:`correct`.
+        predicted : ndarray
+            ``(k, 2)`` the tracks' predicted positions they were associated with.
+        track_var : ndarray
+            ``(k,)`` the tracks' predicted position variance per axis.
+        model_var : ndarray
+            ``(k,)`` the configured (unscaled) measurement variance per axis.
         gate : float
-            The gate they passed (on ``d2``).
+            The chi-square gate the pairs passed.
         multi_sensor : ndarray
-            ``(k,)`` whether another sensor also sees the track (bias is only learned
-            there).
+            ``(k,)`` whether another sensor also sees the track (alignment is only
+            learned there).
         """
-        if not len(d2):
+        if not len(detected):
             return
-        st = self._sensors.setdefault(sensor_id, _SensorState())
+        st = self._sensors.setdefault(
+            sensor_id, _SensorState(align=RigidAlignment(memory=self.align_memory))
+        )
         if self.adapt_noise:
-            self._add_samples(st, d2 * st.scale, gate * st.scale)
+            innovation = detected - predicted
+            cut = gate * (track_var + st.scale * model_var)
+            q = np.einsum("ij,ij->i", innovation, innovation)
+            self._add_samples(st, np.column_stack([q, track_var, model_var, cut]))
         if self.estimate_bias and multi_sensor.any():
-            self._learn_bias(sensor_id, st, innovation[multi_sensor])
+            raw = st.align.invert(detected[multi_sensor])
+            st.align.add(raw, predicted[multi_sensor])
+            st.since_align += int(multi_sensor.sum())
+            if st.since_align >= self.align_every:
+                st.since_align = 0
+                st.align.fit()
+                self._bound(st.align)
+                self._fix_gauge()
 
-    def _add_samples(self, st: _SensorState, u: np.ndarray, c: float) -> None:
-        if len(st.u) < self.window:
-            st.u = np.concatenate([st.u, u])[-self.window :]
-            st.c = np.concatenate([st.c, np.full(len(u), c)])[-self.window :]
+    def _add_samples(self, st: _SensorState, rows: np.ndarray) -> None:
+        if len(st.samples) < self.window:
+            st.samples = np.concatenate([st.samples, rows])[-self.window :]
         else:
-            idx = (st.head + np.arange(len(u))) % self.window
-            st.u[idx] = u
-            st.c[idx] = c
-            st.head = int((st.head + len(u)) % self.window)
-        st.since_fit += len(u)
-        if len(st.u) >= self.min_samples and st.since_fit >= self.refit_every:
+            idx = (st.head + np.arange(len(rows))) % self.window
+            st.samples[idx] = rows
+            st.head = int((st.head + len(rows)) % self.window)
+        st.since_fit += len(rows)
+        if len(st.samples) >= self.min_samples and st.since_fit >= self.refit_every:
             st.since_fit = 0
-            st.scale = truncated_scale(st.u, st.c, 2, self.scale_bounds)
+            st.scale = gated_noise_scale(st.samples, self.scale_bounds)
 
-    def _learn_bias(self, sensor_id: str, st: _SensorState, innovation: np.ndarray) -> None:
-        # stochastic approximation: the bias moves until the corrected innovations
-        # average zero (a capped step, so a batch of many tracks cannot overshoot)
-        step = min(self.bias_rate * len(innovation), 0.5)
-        st.bias = st.bias + step * innovation.mean(axis=0)
-        st.bias_samples += len(innovation)
-        norm = float(np.hypot(*st.bias))
+    def _bound(self, align: RigidAlignment) -> None:
+        """Keep a correction within the largest rotation and shift believed possible."""
+        if abs(align.theta) > self.max_rotation:
+            align.theta = math.copysign(self.max_rotation, align.theta)
+            zbar, xbar = align.sum_z / align.weight, align.sum_x / align.weight
+            align.shift = xbar - rotation(align.theta) @ zbar
+        c = align.centroid()
+        moved = align.apply(c[None])[0] - c
+        norm = float(np.hypot(*moved))
         if norm > self.max_bias_m:
-            st.bias *= self.max_bias_m / norm
-        # gauge: a shift of every sensor at once is invisible; keep the weighted mean at 0
-        learned = [s for s in self._sensors.values() if s.bias_samples > 0]
-        if len(learned) >= 2:
-            weights = np.array([s.bias_samples for s in learned])
-            mean = np.average([s.bias for s in learned], axis=0, weights=weights)
-            for s in learned:
-                s.bias = s.bias - mean
+            align.shift = align.shift - moved * (1.0 - self.max_bias_m / norm)
+
+    def _fix_gauge(self) -> None:
+        """Make the sensors' mean correction the identity (the world is their consensus).
+
+        Rotating or shifting every sensor at once changes no association, so nothing in
+        the data fixes it; left free it would drift. Each correction ``T`` becomes
+        ``G o T`` with ``G`` the inverse of the sensors' weighted mean correction about
+        their common centroid.
+        """
+        learned = [st.align for st in self._sensors.values() if st.align.weight > 0]
+        if len(learned) < 2:
+            return
+        w = np.array([a.weight for a in learned])
+        c = np.average([a.centroid() for a in learned], axis=0, weights=w)
+        mean_theta = float(np.average([a.theta for a in learned], weights=w))
+        back = rotation(-mean_theta)
+        moved = np.array([back @ (a.apply(c[None])[0] - c) for a in learned])
+        mean_moved = np.average(moved, axis=0, weights=w)
+        for a in learned:
+            a.theta -= mean_theta
+            a.shift = back @ (a.shift - c) + c - mean_moved
 
 
 class StaticSensorModel:
@@ -287,8 +357,10 @@ class StaticSensorModel:
     def learn(
         self,
         sensor_id: str,
-        innovation: np.ndarray,
-        d2: np.ndarray,
+        detected: np.ndarray,
+        predicted: np.ndarray,
+        track_var: np.ndarray,
+        model_var: np.ndarray,
         gate: float,
         multi_sensor: np.ndarray,
     ) -> None:

@@ -32,6 +32,8 @@ class DetectionArrays:
         Per-detection values.
     sensor_id : str
         The sensor of the batch.
+    seq : int
+        The batch's sequence number.
     """
 
     index: np.ndarray
@@ -41,6 +43,7 @@ class DetectionArrays:
     confidence: np.ndarray
     distance: np.ndarray
     sensor_id: str = ""
+    seq: int = -1
 
     def __len__(self) -> int:
         return len(self.index)
@@ -55,6 +58,7 @@ class DetectionArrays:
             confidence=self.confidence[rows],
             distance=self.distance[rows],
             sensor_id=self.sensor_id,
+            seq=self.seq,
         )
 
     @classmethod
@@ -65,7 +69,7 @@ class DetectionArrays:
             empty = np.zeros(0)
             return cls(
                 np.zeros(0, dtype=int), np.zeros((0, 2)), empty, empty, empty, empty,
-                batch.sensor_id,
+                batch.sensor_id, batch.seq,
             )  # fmt: skip
         rows = np.array([(d.x, d.y, d.z, d.height, d.confidence, d.distance) for _, d in kept])
         return cls(
@@ -76,6 +80,7 @@ class DetectionArrays:
             confidence=rows[:, 4],
             distance=rows[:, 5],
             sensor_id=batch.sensor_id,
+            seq=batch.seq,
         )
 
 
@@ -108,6 +113,9 @@ class TrackTable:
         Mean position of the track's first detections: where it started.
     birth_n : ndarray of int
         Detections averaged into ``birth_xy`` so far.
+    recent_xy : ndarray
+        Exponential average of the positions of the track's recent detections (where
+        the evidence says it is, unlike the filter's prediction while unseen).
     last_sensor : ndarray of int
         Index of the sensor of the track's last detection.
     multi_t : ndarray
@@ -132,14 +140,15 @@ class TrackTable:
     support: np.ndarray = field(default_factory=lambda: np.zeros(0))
     birth_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     birth_n: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    recent_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     last_sensor: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     multi_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     reborn: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     COLUMNS = (
         "ids", "x", "cov", "z", "height", "confidence", "first_seen", "last_seen", "hits",
-        "confirmed", "hist_t", "hist_xy", "support", "birth_xy", "birth_n", "last_sensor",
-        "multi_t", "reborn",
+        "confirmed", "hist_t", "hist_xy", "support", "birth_xy", "birth_n", "recent_xy",
+        "last_sensor", "multi_t", "reborn",
     )  # fmt: skip
 
     def __len__(self) -> int:

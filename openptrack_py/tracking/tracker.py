@@ -58,13 +58,16 @@ from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKa
 
 log = logging.getLogger(__name__)
 
+RECENT_WEIGHT = 0.3
+"""Weight of a new detection in a track's recent detected position (``recent_xy``)."""
 BIRTH_DETECTIONS = 5
 """Detections averaged into where a track started (``TrackTable.birth_xy``)."""
-REACQUIRE_S = 30.0
+REACQUIRE_S = 10.0
 """How long a lost confirmed track is remembered, so a person seen again there is known."""
 REACQUIRE_RADIUS_M = 0.5
-REACQUIRE_SPEED_MPS = 1.0
-"""A person lost ``dt`` ago may be found within ``radius + speed * dt`` of where they were."""
+REACQUIRE_SPEED_MPS = 0.2
+"""A person lost ``dt`` ago is looked for within ``radius + speed * dt`` of where they
+were: someone who was hidden, not anyone who could have walked anywhere."""
 
 
 @dataclass(frozen=True)
@@ -124,6 +127,9 @@ class Tracker:
         Include tentative tracks in the output.
     publish_unseen_s : float
         Leave out of the output tracks unseen for longer (they stay alive).
+    publish_min_support : float
+        Leave out of the output tracks whose support has fallen below this (they stay
+        alive, and come back with their id when the evidence does).
     late_policy : {"replay", "drop"}
         Out-of-sequence batches: replay from the last snapshot before them, or drop.
     max_lateness_s : float
@@ -136,6 +142,9 @@ class Tracker:
         Weight of one expected frame in a track's support (see ``TrackTable.support``).
     multi_sensor_s : float
         A track detected by two sensors in a row within this long is seen by several.
+    keepalive_min_support : float
+        A confident detection keeps a track alive only if the track's support (after
+        that detection) is at least this.
 
     Examples
     --------
@@ -165,12 +174,14 @@ class Tracker:
         height_smoothing: float = 0.1,
         publish_tentative: bool = False,
         publish_unseen_s: float = 0.5,
+        publish_min_support: float = 0.0,
         late_policy: str = "replay",
         max_lateness_s: float = 1.0,
         max_replay_steps: int = 64,
         max_tracks: int = 1000,
         support_rate: float = 0.2,
         multi_sensor_s: float = 1.0,
+        keepalive_min_support: float = 0.0,
     ) -> None:
         if gater.dof != measurement.dim:
             raise ValueError(
@@ -194,6 +205,7 @@ class Tracker:
         self.identity: IdentityModel = identity if identity is not None else NullIdentity()
         self.support_rate = support_rate
         self.multi_sensor_s = multi_sensor_s
+        self.keepalive_min_support = keepalive_min_support
         self._sensor_index: dict[str, int] = {}
         self.detector_weight = detector_weight
         self.min_confidence_detections = min_confidence_detections
@@ -204,6 +216,7 @@ class Tracker:
         self.height_smoothing = height_smoothing
         self.publish_tentative = publish_tentative
         self.publish_unseen_s = publish_unseen_s
+        self.publish_min_support = publish_min_support
         self.late_policy = late_policy
         self.max_tracks = max_tracks
         self.history: ReplayHistory[_Snapshot] = ReplayHistory(max_lateness_s, max_replay_steps)
@@ -275,7 +288,7 @@ class Tracker:
         tb = self.table
         self.seq += 1
         unseen = t - tb.last_seen
-        shown = unseen <= self.publish_unseen_s
+        shown = (unseen <= self.publish_unseen_s) & (tb.support >= self.publish_min_support)
         if not self.publish_tentative:
             shown &= tb.confirmed
         rows = np.flatnonzero(shown)
@@ -417,14 +430,18 @@ class Tracker:
             return assigned, d2
         rows = np.array([p[0] for p in pairs])
         cols = np.array([p[1] for p in pairs])
-        innovation = z[rows, cols, 0:2] - proj.z[rows, 0:2]
-        self._learn(rows, cols, innovation, d2, gated, dets.sensor_id, t)
+        scale = self.sensors.noise_scale(dets.sensor_id)
+        self._learn(
+            rows, cols, dets.xy[cols], proj.z[rows, 0:2], proj.pzz[rows, 0:2, 0:2],
+            r[rows, cols, 0:2, 0:2] / scale, gated, dets.sensor_id, t,
+        )  # fmt: skip
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
         tb.x[rows], tb.cov[rows] = self.ukf.update(
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r[rows, cols]
         )
-        self._absorb(rows, cols, dets, t)
+        prior_support = tb.support[rows].copy()
         self._update_support(rows, dets.sensor_id)
+        self._absorb(rows, cols, dets, t, prior_support)
         self.merger.observe(tb, rows, t)
         self.identity.observe(tb, rows, cols, dets, t)
         assigned[cols] = True
@@ -434,8 +451,10 @@ class Tracker:
         self,
         rows: np.ndarray,
         cols: np.ndarray,
-        innovation: np.ndarray,
-        d2: np.ndarray,
+        detected: np.ndarray,
+        predicted: np.ndarray,
+        pzz: np.ndarray,
+        model: np.ndarray,
         gated: np.ndarray,
         sensor_id: str,
         t: float,
@@ -452,10 +471,13 @@ class Tracker:
             return
         index = self._sensor_index.get(sensor_id, -1)
         multi = (t - tb.multi_t[rows] <= self.multi_sensor_s) | (tb.last_sensor[rows] != index)
+        pzz, model = pzz[clear], model[clear]
         self.sensors.learn(
             sensor_id,
-            innovation[clear],
-            d2[rows[clear], cols[clear]],
+            detected[clear],
+            predicted[clear],
+            0.5 * (pzz[:, 0, 0] + pzz[:, 1, 1]),
+            0.5 * (model[:, 0, 0] + model[:, 1, 1]),
             float(self.gater.threshold),
             multi[clear],
         )
@@ -500,7 +522,14 @@ class Tracker:
         """
         return d2 + logdet + self.detector_weight * dets.confidence[None, :]
 
-    def _absorb(self, rows: np.ndarray, cols: np.ndarray, dets: DetectionArrays, t: float) -> None:
+    def _absorb(
+        self,
+        rows: np.ndarray,
+        cols: np.ndarray,
+        dets: DetectionArrays,
+        t: float,
+        prior_support: np.ndarray,
+    ) -> None:
         """Bookkeeping of tracks that got a detection at time ``t``."""
         tb = self.table
         a = self.height_smoothing
@@ -508,10 +537,14 @@ class Tracker:
         tb.z[rows] = (1 - a) * tb.z[rows] + a * dets.z[cols]
         tb.confidence[rows] = 0.8 * tb.confidence[rows] + 0.2 * dets.confidence[cols]
         # Only confident detections keep a track alive (OpenPTrack's "last high-confidence
-        # detection"): a lost track cannot live on clutter falling into its wide gate.
+        # detection"), and only while the track's support holds: a lost track whose
+        # gate has grown wide cannot live on a confident false positive now and then.
         confident = dets.confidence[cols] >= self.min_confidence_keepalive
+        confident &= prior_support >= self.keepalive_min_support
         tb.last_seen[rows[confident]] = np.maximum(tb.last_seen[rows[confident]], t)
         tb.hits[rows] += confident
+        b = RECENT_WEIGHT
+        tb.recent_xy[rows] = (1 - b) * tb.recent_xy[rows] + b * dets.xy[cols]
         # where the track started: the mean of its first few detections
         young = tb.birth_n[rows] < BIRTH_DETECTIONS
         yr, yc = rows[young], cols[young]
@@ -533,7 +566,7 @@ class Tracker:
     def _start_tracks(
         self, dets: DetectionArrays, assigned: np.ndarray, d2: np.ndarray, t: float
     ) -> None:
-        new = self.initiator.initiate(dets, assigned, d2)
+        new = self.initiator.initiate(dets, assigned, d2, self.table)
         room = self.max_tracks - len(self.table)
         if room <= 0 or not len(new):
             return
@@ -568,6 +601,7 @@ class Tracker:
             hist_xy=hist_xy,
             support=np.ones(n),
             birth_xy=dets.xy[new].copy(),
+            recent_xy=dets.xy[new].copy(),
             birth_n=np.ones(n, dtype=np.int64),
             last_sensor=np.full(
                 n, self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))

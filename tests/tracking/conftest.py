@@ -109,8 +109,10 @@ class PerfectSensors:
     def learn(
         self,
         sensor_id: str,
-        innovation: np.ndarray,
-        d2: np.ndarray,
+        detected: np.ndarray,
+        predicted: np.ndarray,
+        track_var: np.ndarray,
+        model_var: np.ndarray,
         gate: float,
         multi_sensor: np.ndarray,
     ) -> None:

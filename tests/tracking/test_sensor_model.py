@@ -9,28 +9,43 @@ from scipy.stats import chi2
 from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import Detection, DetectionBatch
 from openptrack_py.tracking import OnlineSensorModel, build_tracker
-from openptrack_py.tracking.sensor_model import truncated_scale
+from openptrack_py.tracking.sensor_model import gated_noise_scale
 from tests.tracking.helpers import FRAME, T0
 
 GATE = float(chi2.ppf(0.95, 2))
 
 
 @pytest.mark.parametrize("scale", [0.5, 1.0, 4.0, 9.0])
-def test_truncated_scale_recovers_the_scale_of_gated_samples(scale: float) -> None:
+@pytest.mark.parametrize("track_var", [0.0, 0.01], ids=["sharp-track", "uncertain-track"])
+def test_the_noise_scale_of_gated_innovations_is_recovered(scale: float, track_var: float) -> None:
     rng = np.random.default_rng(int(scale * 10))
-    # gated at the scale the samples will be found to have: the fixed point
-    u = scale * rng.chisquare(2, 20_000)
-    u = u[u <= GATE * scale][:2000]
-    got = truncated_scale(u, np.full(len(u), GATE * scale), 2, (0.25, 25.0))
-    assert got == pytest.approx(scale, rel=0.1)
+    model_var = 0.01
+    sigma2 = track_var + scale * model_var
+    nu = rng.normal(0.0, np.sqrt(sigma2), (20_000, 2))
+    q = (nu**2).sum(axis=1)
+    # gated with the scale the samples will be found to have: the fixed point
+    cut = GATE * sigma2
+    q = q[q <= cut][:2000]
+    rows = np.column_stack([q, np.full(len(q), track_var), np.full(len(q), model_var),
+                            np.full(len(q), cut)])  # fmt: skip
+    assert gated_noise_scale(rows, (0.25, 25.0)) == pytest.approx(scale, rel=0.15)
 
 
-def test_truncated_scale_is_bounded() -> None:
-    u = np.full(100, 5.9)
-    assert truncated_scale(u, np.full(100, GATE), 2, (0.5, 2.0)) == pytest.approx(2.0, rel=1e-3)
-    assert truncated_scale(np.full(100, 1e-6), np.full(100, GATE), 2, (0.5, 2.0)) == pytest.approx(
-        0.5, rel=1e-3
-    )
+def test_a_too_narrow_gate_is_seen_and_the_scale_grows() -> None:
+    rng = np.random.default_rng(1)
+    nu = rng.normal(0.0, 0.3, (5000, 2))  # true variance 9 times the model's 0.01
+    q = (nu**2).sum(axis=1)
+    cut = GATE * 0.01
+    q = q[q <= cut][:500]
+    rows = np.column_stack([q, np.zeros(len(q)), np.full(len(q), 0.01), np.full(len(q), cut)])
+    assert gated_noise_scale(rows, (0.25, 25.0)) > 3.0
+
+
+def test_the_noise_scale_is_bounded() -> None:
+    big = np.tile([5.9, 0.0, 1.0, GATE], (100, 1))
+    small = np.tile([1e-6, 0.0, 1.0, GATE], (100, 1))
+    assert gated_noise_scale(big, (0.5, 2.0)) == pytest.approx(2.0, rel=1e-3)
+    assert gated_noise_scale(small, (0.5, 2.0)) == pytest.approx(0.5, rel=1e-3)
 
 
 def _walk(tracker, noise, offset, seconds, start_s=0.0):
@@ -79,9 +94,10 @@ def test_one_sensor_alone_learns_no_bias() -> None:
 
 def test_bias_and_scale_are_bounded() -> None:
     model = OnlineSensorModel(max_bias_m=0.2, scale_bounds=(0.5, 4.0), min_samples=10)
+    ones = np.ones(5)
     for _ in range(200):
-        model.learn("s", np.array([[1.0, 0.0]] * 5), np.full(5, 5.9), GATE, np.ones(5, bool))
-        model.learn("t", np.zeros((5, 2)), np.full(5, 0.1), GATE, np.ones(5, bool))
+        model.learn("s", np.array([[1.0, 0.0]] * 5), 0 * ones, 0.01 * ones, GATE, ones > 0)
+        model.learn("t", np.zeros((5, 2)), 0 * ones, 0.01 * ones, GATE, ones > 0)
     assert np.hypot(*model.bias("s")) <= 0.2 + 1e-9
     assert model.noise_scale("s") <= 4.0
 
