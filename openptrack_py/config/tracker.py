@@ -141,7 +141,7 @@ class TrackerConfig(StrictModel):
     """
 
     host: str = "localhost"
-    gate_probability: float = Field(0.95, ge=0.5, le=0.99999)
+    gate_probability: float = Field(0.99, ge=0.5, le=0.99999)
     acceleration_variance: float = Field(0.5, gt=0.0, le=1000.0)
     measurement_sigma_m: float = Field(0.08, gt=0.0, le=2.0)
     measurement_sigma_per_m2: float = Field(0.002, ge=0.0, le=0.1)

@@ -34,6 +34,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from openptrack_py.messages.track import Track
+from openptrack_py.tracking.sensor_model import SensorUpdates
 from openptrack_py.tracking.state import DetectionArrays, TrackTable
 
 
@@ -117,28 +118,20 @@ class SensorModel(Protocol):
     def correct(self, dets: DetectionArrays) -> DetectionArrays:
         """The batch's detections with what is known of their sensor's errors removed."""
 
-    def noise_scale(self, sensor_id: str) -> float:
-        """Factor on the configured measurement covariance of a sensor's detections."""
+    def noise_scale(self, sensor_id: str, distance: np.ndarray) -> np.ndarray:
+        """Factor on the configured covariance of a sensor's detections at ``distance``."""
 
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` the sensor is known to see."""
 
-    def learn(
-        self,
-        sensor_id: str,
-        detected: np.ndarray,
-        predicted: np.ndarray,
-        track_var: np.ndarray,
-        model_var: np.ndarray,
-        gate: float,
-        multi_sensor: np.ndarray,
-    ) -> None:
-        """Learn from unambiguous updates of confirmed tracks by one batch.
+    def clutter_density(self, sensor_id: str) -> float:
+        """Detections per frame and square metre no track explains (0: unknown)."""
 
-        ``detected (k, 2)`` (corrected) and the ``predicted (k, 2)`` track positions;
-        per pair the track's predicted position variance and the configured measurement
-        variance (per axis); the gate's chi-square threshold.
-        """
+    def observe_frame(self, sensor_id: str, unexplained: int) -> None:
+        """A frame of the sensor left ``unexplained`` detections to no track."""
+
+    def learn(self, updates: SensorUpdates) -> None:
+        """Learn from one batch's unambiguous updates of confirmed tracks."""
 
 
 class Merger(Protocol):

@@ -7,8 +7,10 @@ its users report "two ids tracking the same person, offset by about 10 cm, at th
 boundary between two cameras"). :class:`OnlineSensorModel` estimates, per sensor, from
 the innovations of the confirmed tracks it updates:
 
-* a **noise scale** ``s``: the sensor's measurement covariance is ``s`` times the
-  configured model. Innovation-based adaptive estimation (Mehra, 1970) with the gate
+* a **noise scale** ``s(d)``: the sensor's measurement covariance is ``s`` times the
+  configured model, ``s`` estimated in bands of distance from the sensor (how a real
+  detector's error grows with range is rarely the configured curve) and interpolated
+  between them. Innovation-based adaptive estimation (Mehra, 1970) with the gate
   taken into account: the squared Mahalanobis distances of gated pairs are samples of a
   chi-square *truncated at the gate*, so ``s`` is their maximum-likelihood scale under
   that truncation (a plain average of gated distances can never exceed the gate and
@@ -23,6 +25,11 @@ the innovations of the confirmed tracks it updates:
   track), bounded, and applied to its detections before association. A rotation or
   shift of every sensor at once is invisible; it is fixed by keeping the sensors' mean
   map the identity. This is the quantity calibration refinement needs.
+* a **clutter density**: how many of the sensor's detections no track takes, per
+  frame and square metre of the floor it covers. A track may only take a detection
+  that it explains better than clutter would (its likelihood above that density), so a
+  lost track whose gate has grown wide does not jump onto a false detection across
+  the room, while in a clean room it finds its person again from afar.
 * a **coverage** map: the floor cells where a sensor has reported at least a few
   detections. It tells which sensors should see a track, so a person seen by only one
   of three overlapping sensors counts as weaker evidence. Each batch counts once (by
@@ -45,24 +52,73 @@ from openptrack_py.tracking.state import DetectionArrays
 
 COVERAGE_CELL_M = 0.5
 """Side of a coverage cell, metres."""
+NOISE_BANDS_M = np.array([0.0, 3.0, 5.0, 7.0, np.inf])
+"""Edges of the distance bands in which a sensor's noise scale is estimated."""
+NOISE_BAND_CENTRES_M = np.array([2.0, 4.0, 6.0, 8.0])
+"""Where each band's scale applies fully (linear in between, constant outside)."""
 COVERAGE_MIN_DETECTIONS = 5
+CLUTTER_RATE = 0.01
+"""Weight of one frame in a sensor's average of unexplained detections."""
+MIN_CLUTTER_DENSITY = 1e-3
+"""Least clutter density assumed, per frame and square metre."""
 """Detections a sensor must have reported in a cell before it is known to see it."""
+
+
+@dataclass(frozen=True)
+class SensorUpdates:
+    """One batch's unambiguous updates of confirmed tracks, for a sensor model to learn.
+
+    Parameters
+    ----------
+    sensor_id : str
+        The batch's sensor.
+    detected : ndarray
+        ``(k, 2)`` the detections, as corrected by the sensor model.
+    predicted : ndarray
+        ``(k, 2)`` the predicted positions of the tracks they were associated with.
+    distance : ndarray
+        ``(k,)`` the detections' distances from the sensor, metres.
+    track_var : ndarray
+        ``(k,)`` the tracks' predicted position variance, per axis.
+    model_var : ndarray
+        ``(k,)`` the configured (unscaled) measurement variance, per axis.
+    gate : float
+        The chi-square threshold the pairs passed.
+    multi_sensor : ndarray
+        ``(k,)`` whether another sensor also sees each track.
+    """
+
+    sensor_id: str
+    detected: np.ndarray
+    predicted: np.ndarray
+    distance: np.ndarray
+    track_var: np.ndarray
+    model_var: np.ndarray
+    gate: float
+    multi_sensor: np.ndarray
 
 
 @dataclass
 class _SensorState:
     """Everything learned about one sensor (copied whole by :meth:`snapshot`)."""
 
-    scale: float = 1.0
+    scales: np.ndarray = field(default_factory=lambda: np.ones(len(NOISE_BAND_CENTRES_M)))
+    unexplained_per_frame: float = 0.0
     align: RigidAlignment = field(default_factory=RigidAlignment)
     since_align: int = 0
-    # ring buffer of gated innovations: (|nu|^2, track variance, model variance, cut)
-    samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    # ring buffer of gated innovations: |nu|^2, track variance, model variance, cut, range
+    samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
     head: int = 0
     since_fit: int = 0
 
     def copy(self) -> _SensorState:
-        return replace(self, align=self.align.copy(), samples=self.samples.copy())
+        return replace(
+            self, scales=self.scales.copy(), align=self.align.copy(), samples=self.samples.copy()
+        )
+
+    def scale_at(self, distance: np.ndarray) -> np.ndarray:
+        """The noise scale at each distance (interpolated between the bands)."""
+        return np.exp(np.interp(distance, NOISE_BAND_CENTRES_M, np.log(self.scales)))
 
 
 def gated_noise_scale(samples: np.ndarray, bounds: tuple[float, float]) -> float:
@@ -78,11 +134,11 @@ def gated_noise_scale(samples: np.ndarray, bounds: tuple[float, float]) -> float
     Parameters
     ----------
     samples : ndarray
-        ``(n, 4)`` rows ``(q, p, r, c)``.
+        ``(n, 4+)`` rows ``(q, p, r, c, ...)``.
     bounds : (float, float)
         Least and largest scale returned.
     """
-    q, p, r, c = samples.T
+    q, p, r, c = samples[:, 0:4].T
 
     def nll(log_s: float) -> float:
         two_var = 2.0 * (p + math.exp(log_s) * r)
@@ -172,10 +228,12 @@ class OnlineSensorModel:
 
     # ------------------------------------------------------------------ queries
 
-    def noise_scale(self, sensor_id: str) -> float:
-        """Factor on the configured measurement covariance of this sensor."""
+    def noise_scale(self, sensor_id: str, distance: np.ndarray) -> np.ndarray:
+        """Factor on the configured covariance of this sensor's detections at ``distance``."""
         st = self._sensors.get(sensor_id)
-        return st.scale if st is not None else 1.0
+        if st is None:
+            return np.ones(len(distance))
+        return st.scale_at(np.asarray(distance, dtype=float))
 
     def alignment(self, sensor_id: str) -> tuple[float, np.ndarray]:
         """A sensor's learned correction: rotation (radians) and translation (metres).
@@ -201,7 +259,7 @@ class OnlineSensorModel:
         for name, st in sorted(self._sensors.items()):
             bias = self.bias(name)
             out[name] = {
-                "noise_scale": st.scale,
+                "noise_scale": float(st.scale_at(np.array([4.0]))[0]),
                 "rotation_deg": math.degrees(st.align.theta),
                 "bias_x_m": float(bias[0]),
                 "bias_y_m": float(bias[1]),
@@ -215,6 +273,23 @@ class OnlineSensorModel:
         if st is None or st.align.weight <= 0 or not len(dets):
             return dets
         return replace(dets, xy=st.align.apply(dets.xy))
+
+    def clutter_density(self, sensor_id: str) -> float:
+        """Detections per frame and square metre that no track explains, for a sensor."""
+        st = self._sensors.get(sensor_id)
+        cells = self._coverage.get(sensor_id)
+        if st is None or not cells:
+            return MIN_CLUTTER_DENSITY
+        covered = sum(1 for n in cells.values() if n >= COVERAGE_MIN_DETECTIONS)
+        area = max(covered, 1) * COVERAGE_CELL_M**2
+        return max(st.unexplained_per_frame / area, MIN_CLUTTER_DENSITY)
+
+    def observe_frame(self, sensor_id: str, unexplained: int) -> None:
+        """A frame of this sensor left ``unexplained`` detections to no track."""
+        st = self._sensors.setdefault(
+            sensor_id, _SensorState(align=RigidAlignment(memory=self.align_memory))
+        )
+        st.unexplained_per_frame += CLUTTER_RATE * (unexplained - st.unexplained_per_frame)
 
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` where this sensor has reported people."""
@@ -243,49 +318,24 @@ class OnlineSensorModel:
 
     # ----------------------------------------------------------------- learning
 
-    def learn(
-        self,
-        sensor_id: str,
-        detected: np.ndarray,
-        predicted: np.ndarray,
-        track_var: np.ndarray,
-        model_var: np.ndarray,
-        gate: float,
-        multi_sensor: np.ndarray,
-    ) -> None:
-        """Learn from this batch's unambiguous updates of confirmed tracks.
-
-        Parameters
-        ----------
-        sensor_id : str
-            The batch's sensor.
-        detected : ndarray
-            ``(k, 2)`` the detections, as corrected by :meth:`correct`.
-        predicted : ndarray
-            ``(k, 2)`` the tracks' predicted positions they were associated with.
-        track_var : ndarray
-            ``(k,)`` the tracks' predicted position variance per axis.
-        model_var : ndarray
-            ``(k,)`` the configured (unscaled) measurement variance per axis.
-        gate : float
-            The chi-square gate the pairs passed.
-        multi_sensor : ndarray
-            ``(k,)`` whether another sensor also sees the track (alignment is only
-            learned there).
-        """
-        if not len(detected):
+    def learn(self, updates: SensorUpdates) -> None:
+        """Learn from one batch's unambiguous updates of confirmed tracks."""
+        u = updates
+        if not len(u.detected):
             return
         st = self._sensors.setdefault(
-            sensor_id, _SensorState(align=RigidAlignment(memory=self.align_memory))
+            u.sensor_id, _SensorState(align=RigidAlignment(memory=self.align_memory))
         )
         if self.adapt_noise:
-            innovation = detected - predicted
-            cut = gate * (track_var + st.scale * model_var)
+            innovation = u.detected - u.predicted
+            cut = u.gate * (u.track_var + st.scale_at(u.distance) * u.model_var)
             q = np.einsum("ij,ij->i", innovation, innovation)
-            self._add_samples(st, np.column_stack([q, track_var, model_var, cut]))
+            rows = np.column_stack([q, u.track_var, u.model_var, cut, u.distance])
+            self._add_samples(st, rows)
+        multi_sensor = u.multi_sensor
         if self.estimate_bias and multi_sensor.any():
-            raw = st.align.invert(detected[multi_sensor])
-            st.align.add(raw, predicted[multi_sensor])
+            raw = st.align.invert(u.detected[multi_sensor])
+            st.align.add(raw, u.predicted[multi_sensor])
             st.since_align += int(multi_sensor.sum())
             if st.since_align >= self.align_every:
                 st.since_align = 0
@@ -303,7 +353,18 @@ class OnlineSensorModel:
         st.since_fit += len(rows)
         if len(st.samples) >= self.min_samples and st.since_fit >= self.refit_every:
             st.since_fit = 0
-            st.scale = gated_noise_scale(st.samples, self.scale_bounds)
+            st.scales = self._fit_bands(st.samples)
+
+    def _fit_bands(self, samples: np.ndarray) -> np.ndarray:
+        """A scale per distance band; bands with too few samples take the overall one."""
+        overall = gated_noise_scale(samples, self.scale_bounds)
+        band = np.digitize(samples[:, 4], NOISE_BANDS_M) - 1
+        scales = np.full(len(NOISE_BAND_CENTRES_M), overall)
+        for b in range(len(scales)):
+            rows = samples[band == b]
+            if len(rows) >= self.min_samples // 2:
+                scales[b] = gated_noise_scale(rows, self.scale_bounds)
+        return scales
 
     def _bound(self, align: RigidAlignment) -> None:
         """Keep a correction within the largest rotation and shift believed possible."""
@@ -342,26 +403,24 @@ class OnlineSensorModel:
 class StaticSensorModel:
     """Every sensor exactly as configured: no noise scale, no bias, no coverage."""
 
-    def noise_scale(self, sensor_id: str) -> float:
+    def noise_scale(self, sensor_id: str, distance: np.ndarray) -> np.ndarray:
         """Always 1."""
-        return 1.0
+        return np.ones(len(distance))
 
     def correct(self, dets: DetectionArrays) -> DetectionArrays:
         """The detections unchanged."""
         return dets
 
+    def clutter_density(self, sensor_id: str) -> float:
+        """None known: never stops an association."""
+        return 0.0
+
+    def observe_frame(self, sensor_id: str, unexplained: int) -> None:
+        """Nothing to learn."""
+
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """No coverage is known."""
         return np.zeros(len(xy), dtype=bool)
 
-    def learn(
-        self,
-        sensor_id: str,
-        detected: np.ndarray,
-        predicted: np.ndarray,
-        track_var: np.ndarray,
-        model_var: np.ndarray,
-        gate: float,
-        multi_sensor: np.ndarray,
-    ) -> None:
+    def learn(self, updates: SensorUpdates) -> None:
         """Nothing to learn."""

@@ -23,6 +23,7 @@ late) is applied exactly by replaying from a snapshot (:mod:`openptrack_py.track
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,7 +47,7 @@ from openptrack_py.tracking.gating import mahalanobis
 from openptrack_py.tracking.identity import NullIdentity
 from openptrack_py.tracking.merging import NoMerging
 from openptrack_py.tracking.replay import ReplayHistory
-from openptrack_py.tracking.sensor_model import StaticSensorModel
+from openptrack_py.tracking.sensor_model import SensorUpdates, StaticSensorModel
 from openptrack_py.tracking.state import (
     HISTORY,
     HISTORY_SPACING_S,
@@ -395,10 +396,10 @@ class Tracker:
         tb = self.table
         proj = self.ukf.project(tb.x, tb.cov, self.measurement.hx)
         z, r = self.measurement.pair_measurements(dets, tb, t)
-        scale = self.sensors.noise_scale(dets.sensor_id)
-        if scale != 1.0:
+        scale = self.sensors.noise_scale(dets.sensor_id, dets.distance)
+        if (scale != 1.0).any():
             r = r.copy()
-            r[..., 0:2, 0:2] *= scale
+            r[..., 0:2, 0:2] *= scale[None, :, None, None]
         resid = z - proj.z[:, None, :]
         d2, logdet = mahalanobis(resid, proj.pzz[:, None], r)
         return proj, z, r, d2, logdet
@@ -411,6 +412,7 @@ class Tracker:
         assigned = np.zeros(len(dets), dtype=bool)
         if not len(tb) or not len(dets):
             self._update_support(np.zeros(0, dtype=int), dets.sensor_id)
+            self.sensors.observe_frame(dets.sensor_id, len(dets))
             return assigned, np.zeros((len(tb), len(dets)))
         proj, z, r, d2, logdet = self._pair_terms(dets, t)
         allowed = self.gater.gate(d2)
@@ -420,6 +422,12 @@ class Tracker:
         weak = dets.confidence < self.min_confidence_keepalive
         lost = t - tb.last_seen > self.visibility_timeout_s
         allowed &= ~(lost[:, None] & weak[None, :])
+        if self.measurement.dim == 2:
+            # a track only takes a detection it explains better than clutter does:
+            # N(nu; 0, S) >= clutter density, i.e. d2 + ln|S| <= -2 ln(2 pi density)
+            density = self.sensors.clutter_density(dets.sensor_id)
+            if density > 0:
+                allowed &= d2 + logdet <= -2.0 * math.log(2.0 * math.pi * density)
         cost = self._base_cost(d2, logdet, dets)
         extra = self.identity.cost(tb, dets, t)
         if extra is not None:
@@ -427,13 +435,14 @@ class Tracker:
         pairs = self._assign_by_stage(cost, allowed)
         if not pairs:
             self._update_support(np.zeros(0, dtype=int), dets.sensor_id)
+            self.sensors.observe_frame(dets.sensor_id, len(dets))
             return assigned, d2
         rows = np.array([p[0] for p in pairs])
         cols = np.array([p[1] for p in pairs])
-        scale = self.sensors.noise_scale(dets.sensor_id)
+        scale = self.sensors.noise_scale(dets.sensor_id, dets.distance)[cols]
         self._learn(
-            rows, cols, dets.xy[cols], proj.z[rows, 0:2], proj.pzz[rows, 0:2, 0:2],
-            r[rows, cols, 0:2, 0:2] / scale, gated, dets.sensor_id, t,
+            rows, cols, dets, proj.z[rows, 0:2], proj.pzz[rows, 0:2, 0:2],
+            r[rows, cols, 0:2, 0:2] / scale[:, None, None], gated, t,
         )  # fmt: skip
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
         tb.x[rows], tb.cov[rows] = self.ukf.update(
@@ -445,18 +454,18 @@ class Tracker:
         self.merger.observe(tb, rows, t)
         self.identity.observe(tb, rows, cols, dets, t)
         assigned[cols] = True
+        self.sensors.observe_frame(dets.sensor_id, int((~assigned).sum()))
         return assigned, d2
 
     def _learn(
         self,
         rows: np.ndarray,
         cols: np.ndarray,
-        detected: np.ndarray,
+        dets: DetectionArrays,
         predicted: np.ndarray,
         pzz: np.ndarray,
         model: np.ndarray,
         gated: np.ndarray,
-        sensor_id: str,
         t: float,
     ) -> None:
         """Hand the sensor model this batch's unambiguous updates of settled tracks."""
@@ -469,17 +478,20 @@ class Tracker:
         )
         if not clear.any():
             return
-        index = self._sensor_index.get(sensor_id, -1)
+        index = self._sensor_index.get(dets.sensor_id, -1)
         multi = (t - tb.multi_t[rows] <= self.multi_sensor_s) | (tb.last_sensor[rows] != index)
-        pzz, model = pzz[clear], model[clear]
+        pzz, model, kept = pzz[clear], model[clear], cols[clear]
         self.sensors.learn(
-            sensor_id,
-            detected[clear],
-            predicted[clear],
-            0.5 * (pzz[:, 0, 0] + pzz[:, 1, 1]),
-            0.5 * (model[:, 0, 0] + model[:, 1, 1]),
-            float(self.gater.threshold),
-            multi[clear],
+            SensorUpdates(
+                sensor_id=dets.sensor_id,
+                detected=dets.xy[kept],
+                predicted=predicted[clear],
+                distance=dets.distance[kept],
+                track_var=0.5 * (pzz[:, 0, 0] + pzz[:, 1, 1]),
+                model_var=0.5 * (model[:, 0, 0] + model[:, 1, 1]),
+                gate=float(self.gater.threshold),
+                multi_sensor=multi[clear],
+            )
         )
 
     def _update_support(self, hit_rows: np.ndarray, sensor_id: str) -> None:

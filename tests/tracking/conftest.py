@@ -79,7 +79,13 @@ class GreedyAssociator:
 class EveryOrphanInitiator:
     """Every detection no track explains starts a track; two hits confirm it."""
 
-    def initiate(self, dets: DetectionArrays, assigned: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    def initiate(
+        self,
+        dets: DetectionArrays,
+        assigned: np.ndarray,
+        d2: np.ndarray,
+        table: TrackTable | None = None,
+    ) -> np.ndarray:
         in_any_gate = (d2 <= ThresholdGate.threshold).any(axis=0) if len(d2) else False
         return np.flatnonzero(~assigned & ~in_any_gate)
 
@@ -100,22 +106,19 @@ class PerfectSensors:
     def correct(self, dets: DetectionArrays) -> DetectionArrays:
         return dets
 
-    def noise_scale(self, sensor_id: str) -> float:
-        return 1.0
+    def noise_scale(self, sensor_id: str, distance: np.ndarray) -> np.ndarray:
+        return np.ones(len(distance))
 
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         return np.zeros(len(xy), dtype=bool)
 
-    def learn(
-        self,
-        sensor_id: str,
-        detected: np.ndarray,
-        predicted: np.ndarray,
-        track_var: np.ndarray,
-        model_var: np.ndarray,
-        gate: float,
-        multi_sensor: np.ndarray,
-    ) -> None:
+    def clutter_density(self, sensor_id: str) -> float:
+        return 0.0
+
+    def observe_frame(self, sensor_id: str, unexplained: int) -> None:
+        pass
+
+    def learn(self, updates: object) -> None:
         pass
 
 

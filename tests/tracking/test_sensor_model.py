@@ -9,7 +9,7 @@ from scipy.stats import chi2
 from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import Detection, DetectionBatch
 from openptrack_py.tracking import OnlineSensorModel, build_tracker
-from openptrack_py.tracking.sensor_model import gated_noise_scale
+from openptrack_py.tracking.sensor_model import SensorUpdates, gated_noise_scale
 from tests.tracking.helpers import FRAME, T0
 
 GATE = float(chi2.ppf(0.95, 2))
@@ -66,7 +66,9 @@ def test_a_noisier_sensor_gets_a_larger_noise_scale() -> None:
     _walk(tracker, {"quiet": 0.05, "loud": 0.25}, {}, 15.0)
     started = tracker.counters["tracks_started"]
     _walk(tracker, {"quiet": 0.05, "loud": 0.25}, {}, 45.0, start_s=15.0)
-    quiet, loud = tracker.sensors.noise_scale("quiet"), tracker.sensors.noise_scale("loud")
+    at_3m = np.array([3.0])
+    quiet = tracker.sensors.noise_scale("quiet", at_3m)[0]
+    loud = tracker.sensors.noise_scale("loud", at_3m)[0]
     # true variances: (0.05 / 0.098)^2 = 0.26 and (0.25 / 0.098)^2 = 6.5 times the model
     assert 0.15 < quiet < 0.5
     assert 3.0 < loud < 15.0
@@ -95,11 +97,17 @@ def test_one_sensor_alone_learns_no_bias() -> None:
 def test_bias_and_scale_are_bounded() -> None:
     model = OnlineSensorModel(max_bias_m=0.2, scale_bounds=(0.5, 4.0), min_samples=10)
     ones = np.ones(5)
+    spread = np.column_stack([np.linspace(0, 4, 5), np.linspace(0, 4, 5)])
+
+    def updates(sensor: str, offset: float) -> SensorUpdates:
+        return SensorUpdates(sensor, spread + offset, spread, 3 * ones, 0 * ones,
+                             0.01 * ones, GATE, ones > 0)  # fmt: skip
+
     for _ in range(200):
-        model.learn("s", np.array([[1.0, 0.0]] * 5), 0 * ones, 0.01 * ones, GATE, ones > 0)
-        model.learn("t", np.zeros((5, 2)), 0 * ones, 0.01 * ones, GATE, ones > 0)
+        model.learn(updates("s", 1.0))
+        model.learn(updates("t", 0.0))
     assert np.hypot(*model.bias("s")) <= 0.2 + 1e-9
-    assert model.noise_scale("s") <= 4.0
+    assert model.noise_scale("s", np.array([3.0]))[0] <= 4.0
 
 
 def test_coverage_is_where_a_sensor_reported_something() -> None:
@@ -107,9 +115,20 @@ def test_coverage_is_where_a_sensor_reported_something() -> None:
     tracker = build_tracker(TrackerConfig())
     tracker.sensors = model
     d = Detection(x=1.2, y=3.7, z=1.0, height=1.7, confidence=0.9, distance=3.0)
-    tracker.step(DetectionBatch("s", 0, T0, "world", (d,)))
-    assert model.covers("s", np.array([[1.0, 3.6], [4.0, 4.0]])).tolist() == [True, False]
-    assert model.covers("other", np.array([[1.0, 3.6]])).tolist() == [False]
+    probe = np.array([[1.0, 3.6], [4.0, 4.0]])
+    for k in range(5):
+        assert model.covers("s", probe).tolist() == [False, False]  # not yet: a few first
+        tracker.step(DetectionBatch("s", k, T0 + k * FRAME, "world", (d,)))
+    assert model.covers("s", probe).tolist() == [True, False]
+    assert model.covers("other", probe[:1]).tolist() == [False]
+    # a batch applied again (a replay) is not counted twice
+    again = OnlineSensorModel()
+    from openptrack_py.tracking.state import DetectionArrays
+
+    batch = DetectionArrays.from_batch(DetectionBatch("s", 7, T0, "world", (d,)), 0.0)
+    for _ in range(10):
+        again.correct(batch)
+    assert again.covers("s", probe[:1]).tolist() == [False]
 
 
 def test_learned_state_survives_a_late_batch_replay() -> None:
@@ -125,5 +144,8 @@ def test_learned_state_survives_a_late_batch_replay() -> None:
     ontime.step(extra)
     ontime.step(DetectionBatch("a", 10_001, t + FRAME, "world", ()))
     assert late.counters["late_applied"] == 1
-    assert late.sensors.noise_scale("b") == ontime.sensors.noise_scale("b")
+    at = np.array([2.0, 5.0])
+    np.testing.assert_array_equal(
+        late.sensors.noise_scale("b", at), ontime.sensors.noise_scale("b", at)
+    )
     np.testing.assert_array_equal(late.sensors.bias("b"), ontime.sensors.bias("b"))
