@@ -17,6 +17,7 @@ from openptrack_py.tracking import (
     ConstantVelocity,
     GlobalNearestNeighbour,
     PositionMeasurement,
+    StaticSensorModel,
     TimeDeleter,
     Tracker,
     build_tracker,
@@ -72,6 +73,8 @@ def _admission_radius(tracker: Tracker) -> float:
 
 def test_gate_widens_with_time_unseen() -> None:
     tracker = build_tracker(TrackerConfig(confirm_min_displacement_m=0.0, confirm_min_age_s=0.0))
+    # the gate alone: no learned noise, and no clutter density narrowing it
+    tracker.sensors = StaticSensorModel()
     last = feed_still(tracker, (3.0, 2.0), 6)
     assert tracker.table.confirmed.tolist() == [True]
     r_noise = PositionMeasurement(0.08, 0.002).noise(np.array([3.0]))[0]
