@@ -135,6 +135,10 @@ class TrackerConfig(StrictModel):
         track left on a static false positive, cannot live on a confident false
         detection now and then, while a person seen again after an occlusion regains
         support within a few frames.
+    unseen_stop_s : float
+        While a track is unseen its velocity decays with this time constant: people
+        stop and turn, so a track does not coast on across the room after someone who
+        stopped where no sensor sees them (0: constant velocity throughout).
     support_rate : float
         Weight of one expected sensor frame in a track's support (the exponential
         average of detected / expected frames).
@@ -181,6 +185,7 @@ class TrackerConfig(StrictModel):
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
     support_rate: float = Field(0.1, gt=0.0, le=1.0)
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
+    unseen_stop_s: float = Field(1.0, ge=0.0, le=60.0)
 
     @model_validator(mode="after")
     def _birth_gate_outside_gate(self) -> TrackerConfig:

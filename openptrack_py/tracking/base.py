@@ -15,7 +15,8 @@ initiator          ``initiate`` / ``confirm``: births and confirmation   Confide
 deleter            ``delete``: which tracks end                          TimeDeleter
 sensors            ``correct`` / ``noise_scale`` / ``covers`` / ``learn``: OnlineSensorModel
                    what is learned about each sensor
-merger             ``observe`` / ``merge``: two tracks, one person       TrackMerger
+merger             ``observe`` / ``merge`` / ``reattach``: one person,   TrackMerger
+                   one track
 identity           ``cost`` / ``observe`` / ``annotate``: who a track is NullIdentity
 =================  ===================================================  ==============
 
@@ -142,6 +143,11 @@ class Merger(Protocol):
 
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
         """Pairs ``(keep_row, drop_row)`` to merge at ``t``."""
+
+    def reattach(
+        self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
+    ) -> list[tuple[int, int]]:
+        """Pairs ``(lost_row, new_row)``: a track confirmed now is a lost one seen again."""
 
 
 @runtime_checkable

@@ -70,4 +70,5 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
         max_tracks=cfg.max_tracks,
         support_rate=cfg.support_rate,
         keepalive_min_support=cfg.keepalive_min_support,
+        unseen_stop_s=cfg.unseen_stop_s,
     )

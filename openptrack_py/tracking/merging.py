@@ -1,4 +1,4 @@
-"""Merging two confirmed tracks that follow one person.
+"""Merging two confirmed tracks that follow one person, and re-attaching a lost one.
 
 Whatever care birth takes, a person can end up with two confirmed tracks (two sensors
 whose calibrations disagree at a camera boundary, a burst of outliers). Left alone, the
@@ -32,6 +32,10 @@ class TrackMerger:
         A pair detected in one sensor frame is two people for this long.
     fresh_s : float
         Both tracks must have had a detection this recently.
+    reattach_speed_mps : float
+        A lost track may be the person of a new track that started within
+        ``distance_m + reattach_speed_mps * elapsed`` of where it was last seen (0
+        disables re-attachment).
     """
 
     def __init__(
@@ -41,12 +45,14 @@ class TrackMerger:
         max_speed_difference_mps: float = 0.6,
         distinct_s: float = 5.0,
         fresh_s: float = 0.3,
+        reattach_speed_mps: float = 1.5,
     ) -> None:
         self.distance_m = distance_m
         self.after_s = after_s
         self.max_speed_difference_mps = max_speed_difference_mps
         self.distinct_s = distinct_s
         self.fresh_s = fresh_s
+        self.reattach_speed_mps = reattach_speed_mps
         self._close_since: dict[tuple[int, int], float] = {}
         self._distinct: dict[tuple[int, int], float] = {}
 
@@ -70,6 +76,44 @@ class TrackMerger:
         for i, j in zip(*np.nonzero(np.triu(gap <= reach, k=1)), strict=True):
             a, b = sorted((int(table.ids[rows[i]]), int(table.ids[rows[j]])))
             self._distinct[(a, b)] = t
+
+    def reattach(
+        self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
+    ) -> list[tuple[int, int]]:
+        """Pairs ``(lost_row, new_row)``: a just-confirmed track is a lost one seen again.
+
+        Parameters
+        ----------
+        table : TrackTable
+            The tracks.
+        t : float
+            Now.
+        new : ndarray
+            Rows confirmed in this step.
+        lost_after_s : float
+            A confirmed track unseen this long is lost.
+        """
+        if self.reattach_speed_mps <= 0 or not len(new):
+            return []
+        lost = np.flatnonzero(table.confirmed & (t - table.last_seen > lost_after_s))
+        if not len(lost):
+            return []
+        gap = np.hypot(
+            table.birth_xy[new, None, 0] - table.recent_xy[None, lost, 0],
+            table.birth_xy[new, None, 1] - table.recent_xy[None, lost, 1],
+        )
+        elapsed = table.first_seen[new, None] - table.last_seen[None, lost]
+        reach = self.distance_m + self.reattach_speed_mps * np.maximum(elapsed, 0.0)
+        ok = (elapsed > 0) & (gap <= reach)
+        out: list[tuple[int, int]] = []
+        used: set[int] = set()
+        for i, j in sorted(zip(*np.nonzero(ok), strict=True), key=lambda ij: gap[ij]):
+            a, b = int(lost[j]), int(new[i])
+            if a in used or b in used:
+                continue
+            out.append((a, b))
+            used.update((a, b))
+        return out
 
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
         """Pairs ``(keep_row, drop_row)`` to merge now; each row in at most one pair."""
@@ -123,5 +167,11 @@ class NoMerging:
         """Nothing to remember."""
 
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
+        """No pairs."""
+        return []
+
+    def reattach(
+        self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
+    ) -> list[tuple[int, int]]:
         """No pairs."""
         return []

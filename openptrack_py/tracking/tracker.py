@@ -144,8 +144,10 @@ class Tracker:
     multi_sensor_s : float
         A track detected by two sensors in a row within this long is seen by several.
     keepalive_min_support : float
-        A confident detection keeps a track alive only if the track's support (after
+        A confident detection keeps a track alive only if the track's support (before
         that detection) is at least this.
+    unseen_stop_s : float
+        Time constant of the velocity decay of unseen tracks (0: none).
 
     Examples
     --------
@@ -183,6 +185,7 @@ class Tracker:
         support_rate: float = 0.2,
         multi_sensor_s: float = 1.0,
         keepalive_min_support: float = 0.0,
+        unseen_stop_s: float = 0.0,
     ) -> None:
         if gater.dof != measurement.dim:
             raise ValueError(
@@ -207,6 +210,7 @@ class Tracker:
         self.support_rate = support_rate
         self.multi_sensor_s = multi_sensor_s
         self.keepalive_min_support = keepalive_min_support
+        self.unseen_stop_s = unseen_stop_s
         self._sensor_index: dict[str, int] = {}
         self.detector_weight = detector_weight
         self.min_confidence_detections = min_confidence_detections
@@ -237,6 +241,7 @@ class Tracker:
                 "tracks_started",
                 "tracks_deleted",
                 "tracks_merged",
+                "tracks_reattached",
             ),
             0,
         )
@@ -387,7 +392,26 @@ class Tracker:
             tb.x, tb.cov = self.ukf.predict(
                 tb.x, tb.cov, dt, self.motion.fx, self.motion.noise(dt)
             )
+            self._damp_unseen(t, dt[0])
         self.time = t if self.time is None else max(self.time, t)
+
+    def _damp_unseen(self, t: float, dt: float) -> None:
+        """A person nobody sees is more likely to slow down than to walk on for ever.
+
+        While a track is unseen its velocity decays with time constant
+        ``unseen_stop_s`` (its covariance with it), so a track does not coast across the
+        room after someone who stopped or turned where no sensor sees them.
+        """
+        if self.unseen_stop_s <= 0:
+            return
+        tb = self.table
+        unseen = t - tb.last_seen > self.visibility_timeout_s
+        if not unseen.any():
+            return
+        k = math.exp(-dt / self.unseen_stop_s)
+        f = np.diag([1.0, 1.0, k, k])
+        tb.x[unseen] = tb.x[unseen] @ f
+        tb.cov[unseen] = f @ tb.cov[unseen] @ f
 
     def _pair_terms(
         self, dets: DetectionArrays, t: float
@@ -627,7 +651,9 @@ class Tracker:
         tb = self.table
         if not len(tb):
             return
+        was = tb.confirmed
         tb.confirmed = self.initiator.confirm(tb, t)
+        self._reattach(t, np.flatnonzero(tb.confirmed & ~was))
         self._merge(t)
         gone = self.deleter.delete(tb, t)
         self.lost.forget_before(t - REACQUIRE_S)
@@ -663,4 +689,21 @@ class Tracker:
         self.counters["tracks_deleted"] += len(drop)
         mask = np.ones(len(tb), dtype=bool)
         mask[drop] = False
+        tb.keep(mask)
+
+    def _reattach(self, t: float, new: np.ndarray) -> None:
+        """A track confirmed now takes the id of the lost track its person had."""
+        pairs = self.merger.reattach(self.table, t, new, self.visibility_timeout_s)
+        if not pairs:
+            return
+        tb = self.table
+        lost = np.array([p[0] for p in pairs])
+        found = np.array([p[1] for p in pairs])
+        self.identity.ended(tb, found, t)
+        tb.ids[found] = tb.ids[lost]
+        tb.first_seen[found] = tb.first_seen[lost]
+        self.counters["tracks_reattached"] += len(pairs)
+        self.counters["tracks_deleted"] += len(pairs)
+        mask = np.ones(len(tb), dtype=bool)
+        mask[lost] = False
         tb.keep(mask)

@@ -131,6 +131,11 @@ class NeverMerge:
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
         return []
 
+    def reattach(
+        self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
+    ) -> list[tuple[int, int]]:
+        return []
+
 
 @dataclass
 class ForgetfulIdentity:
