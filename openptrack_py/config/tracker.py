@@ -180,7 +180,7 @@ class TrackerConfig(StrictModel):
     noise_scale_max: float = Field(25.0, ge=1.0, le=400.0)
     estimate_bias: bool = True
     max_bias_m: float = Field(0.5, ge=0.0, le=5.0)
-    merge_distance_m: float = Field(0.35, ge=0.0, le=2.0)
+    merge_distance_m: float = Field(0.45, ge=0.0, le=2.0)
     merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
     support_rate: float = Field(0.1, gt=0.0, le=1.0)

@@ -25,7 +25,8 @@ class TrackMerger:
     distance_m : float
         Largest distance between two tracks of one person.
     after_s : float
-        How long they must stay that close (0 disables merging).
+        How long they must stay that close (0 disables merging); apart for less than
+        this does not restart the count.
     max_speed_difference_mps : float
         Largest difference of their velocities.
     distinct_s : float
@@ -54,17 +55,16 @@ class TrackMerger:
         self.fresh_s = fresh_s
         self.reattach_speed_mps = reattach_speed_mps
         self._close_since: dict[tuple[int, int], float] = {}
+        self._last_close: dict[tuple[int, int], float] = {}
         self._distinct: dict[tuple[int, int], float] = {}
 
-    def snapshot(self) -> tuple[dict[tuple[int, int], float], dict[tuple[int, int], float]]:
+    def snapshot(self) -> tuple[dict[tuple[int, int], float], ...]:
         """Pair timers (independent copies)."""
-        return dict(self._close_since), dict(self._distinct)
+        return dict(self._close_since), dict(self._last_close), dict(self._distinct)
 
-    def restore(
-        self, state: tuple[dict[tuple[int, int], float], dict[tuple[int, int], float]]
-    ) -> None:
+    def restore(self, state: tuple[dict[tuple[int, int], float], ...]) -> None:
         """Return to a snapshot."""
-        self._close_since, self._distinct = dict(state[0]), dict(state[1])
+        self._close_since, self._last_close, self._distinct = (dict(d) for d in state)
 
     def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
         """Tracks ``rows`` were detected in one sensor frame: close pairs are distinct."""
@@ -121,7 +121,13 @@ class TrackMerger:
             return []
         rows = np.flatnonzero(table.confirmed & (t - table.last_seen <= self.fresh_s))
         close = self._close_pairs(table, rows)
-        self._close_since = {p: s for p, s in self._close_since.items() if p in close}
+        for pair in close:
+            self._last_close[pair] = t
+        # a pair stays "close" through brief separations (noise), not through long ones
+        apart = [p for p, s in self._last_close.items() if t - s > self.after_s]
+        for pair in apart:
+            self._last_close.pop(pair, None)
+            self._close_since.pop(pair, None)
         self._distinct = {p: s for p, s in self._distinct.items() if t - s < self.distinct_s}
         out: list[tuple[int, int]] = []
         used: set[int] = set()
