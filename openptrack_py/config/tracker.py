@@ -139,6 +139,11 @@ class TrackerConfig(StrictModel):
         While a track is unseen its velocity decays with this time constant: people
         stop and turn, so a track does not coast on across the room after someone who
         stopped where no sensor sees them (0: constant velocity throughout).
+    shared_noise_factor : float
+        A detection that two confirmed tracks could both have produced (two people
+        standing close come out of a detector as one blob) updates its track with this
+        many times its noise, so the track is not dragged onto the other person's course
+        (1: no difference).
     support_rate : float
         Weight of one expected sensor frame in a track's support (the exponential
         average of detected / expected frames).
@@ -186,6 +191,7 @@ class TrackerConfig(StrictModel):
     support_rate: float = Field(0.1, gt=0.0, le=1.0)
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
     unseen_stop_s: float = Field(1.0, ge=0.0, le=60.0)
+    shared_noise_factor: float = Field(10.0, ge=1.0, le=100.0)
 
     @model_validator(mode="after")
     def _birth_gate_outside_gate(self) -> TrackerConfig:

@@ -71,4 +71,5 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
         support_rate=cfg.support_rate,
         keepalive_min_support=cfg.keepalive_min_support,
         unseen_stop_s=cfg.unseen_stop_s,
+        shared_noise_factor=cfg.shared_noise_factor,
     )

@@ -148,6 +148,9 @@ class Tracker:
         that detection) is at least this.
     unseen_stop_s : float
         Time constant of the velocity decay of unseen tracks (0: none).
+    shared_noise_factor : float
+        Factor on the noise of a detection that two confirmed tracks could both have
+        produced (two people in one blob), so it drags its track less.
 
     Examples
     --------
@@ -186,6 +189,7 @@ class Tracker:
         multi_sensor_s: float = 1.0,
         keepalive_min_support: float = 0.0,
         unseen_stop_s: float = 0.0,
+        shared_noise_factor: float = 1.0,
     ) -> None:
         if gater.dof != measurement.dim:
             raise ValueError(
@@ -211,6 +215,7 @@ class Tracker:
         self.multi_sensor_s = multi_sensor_s
         self.keepalive_min_support = keepalive_min_support
         self.unseen_stop_s = unseen_stop_s
+        self.shared_noise_factor = shared_noise_factor
         self._sensor_index: dict[str, int] = {}
         self.detector_weight = detector_weight
         self.min_confidence_detections = min_confidence_detections
@@ -469,8 +474,17 @@ class Tracker:
             r[rows, cols, 0:2, 0:2] / scale[:, None, None], gated, t,
         )  # fmt: skip
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
+        r_used = r[rows, cols]
+        if self.shared_noise_factor > 1.0:
+            # a detection two confirmed tracks could both have produced may be both
+            # people in one blob: it pulls its track less, so neither is dragged onto
+            # the other's course
+            shared = (gated[:, cols] & tb.confirmed[:, None]).sum(axis=0) >= 2
+            if shared.any():
+                r_used = r_used.copy()
+                r_used[shared] *= self.shared_noise_factor
         tb.x[rows], tb.cov[rows] = self.ukf.update(
-            tb.x[rows], tb.cov[rows], sub, z[rows, cols], r[rows, cols]
+            tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used
         )
         prior_support = tb.support[rows].copy()
         self._update_support(rows, dets.sensor_id)
