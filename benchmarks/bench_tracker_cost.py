@@ -8,7 +8,10 @@ reported range of 3 m (so every detection has the tracker's noise at 3 m, whatev
 position on the large grids). No clutter, no misses.
 
 Ours: ``openptrack_py.tracking.build_tracker()`` with the default ``TrackerConfig``
-(UKF, chi-square gate, GNN, lifecycle). 60 warm-up batches confirm every track, then
+(UKF, chi-square gate, GNN, lifecycle, robust track management), and, in the same run,
+the plain tracker with robust track management off (``ROBUSTNESS_OFF``: what the
+tracker cost before it; ``robust_over_plain`` is the ratio). 150 warm-up batches confirm
+every track (a track is confirmed once its person has moved 0.5 m), then
 ``Tracker.step`` is timed alone (batches are built beforehand) for 300 batches; each
 step predicts, gates, assigns and updates all ``n`` tracks and builds the output
 ``TrackBatch``.
@@ -54,7 +57,7 @@ import numpy as np
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
 from benchmarks.common import emit
-from openptrack_py.config import TrackerConfig
+from openptrack_py.config import ROBUSTNESS_OFF, TrackerConfig
 from openptrack_py.messages import Detection, DetectionBatch
 from openptrack_py.tracking import build_tracker
 from openptrack_py.tracking.measurement import PositionMeasurement
@@ -65,7 +68,7 @@ RATE_HZ = 30.0
 SPACING_M = 1.5
 RANGE_M = 3.0
 NOISE_M = 0.03
-WARMUP = 60
+WARMUP = 150
 TARGETS_MS = {20: 1.0, 100: 5.0}
 T0 = 1_767_225_600.0
 
@@ -92,8 +95,8 @@ def scene(n: int, batches: int, seed: int = 0) -> tuple[list[DetectionBatch], np
     return out, xy_all
 
 
-def time_ours(batches: list[DetectionBatch]) -> dict[str, object]:
-    tracker = build_tracker()
+def time_ours(batches: list[DetectionBatch], cfg: TrackerConfig) -> dict[str, object]:
+    tracker = build_tracker(cfg)
     for b in batches[:WARMUP]:
         out = tracker.step(b)
     confirmed_before = sum(tr.confirmed for tr in out.tracks)
@@ -168,11 +171,14 @@ def main(batches: int = 300, counts: tuple[int, ...] = COUNTS) -> dict[str, obje
     meets: dict[str, bool] = {}
     for n in counts:
         stream, xy_all = scene(n, WARMUP + batches, seed=n)
-        ours = time_ours(stream)
+        ours = time_ours(stream, cfg)
+        plain = stats(time_ours(stream, TrackerConfig(**ROBUSTNESS_OFF))["samples"])
         fp = time_filterpy(xy_all, cfg)
         o, f = stats(ours["samples"]), stats(fp)
         per_count[str(n)] = {
             "ours": o,
+            "plain": plain,
+            "robust_over_plain": round(o["mean_ms"] / plain["mean_ms"], 2),
             "filterpy_loop": f,
             "filterpy_over_ours": round(f["mean_ms"] / o["mean_ms"], 2),
             "confirmed_after_warmup": ours["confirmed_after_warmup"],

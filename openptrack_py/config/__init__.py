@@ -47,10 +47,11 @@ from openptrack_py.config.output import (
 from openptrack_py.config.recorder import RecorderConfig
 from openptrack_py.config.sensors import Pose, PoseError, SensorConfig
 from openptrack_py.config.sim import ScenarioName, SimConfig
-from openptrack_py.config.tracker import TrackerConfig
+from openptrack_py.config.tracker import ROBUSTNESS_OFF, TrackerConfig
 from openptrack_py.config.zenoh import ZenohConfig
 
 __all__ = [
+    "ROBUSTNESS_OFF",
     "ENDPOINT_PROTOCOLS",
     "HEIGHT_PRESETS",
     "NAME_PATTERN",

@@ -201,3 +201,22 @@ class TrackerConfig(StrictModel):
                 f"gate_probability ({self.gate_probability})"
             )
         return self
+
+
+ROBUSTNESS_OFF: dict[str, object] = {
+    "adaptive_noise": False,
+    "estimate_bias": False,
+    "birth_gate_probability": 0.99,
+    "birth_min_separation_m": 0.0,
+    "confirm_min_age_s": 0.0,
+    "confirm_min_support": 0.0,
+    "confirm_min_displacement_m": 0.0,
+    "merge_after_s": 0.0,
+    "keepalive_min_support": 0.0,
+    "unseen_stop_s": 0.0,
+    "shared_noise_factor": 1.0,
+}
+"""``TrackerConfig`` settings that turn off every mechanism of robust track management
+(learned sensor noise and alignment, the birth gate and least separation, confirmation on
+evidence, merging, support-based keepalive, slowing unseen tracks, weak updates from
+shared blobs): the plain tracker, for comparisons (``TrackerConfig(**ROBUSTNESS_OFF)``)."""

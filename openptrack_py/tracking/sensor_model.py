@@ -172,7 +172,9 @@ class OnlineSensorModel:
     window : int
         Gated distances kept per sensor for the noise scale.
     refit_every : int
-        New samples between two noise-scale fits.
+        New samples between two noise-scale fits (and at least a hundred per sensor
+        for each fit of the distance bands, so a crowded room does not refit at every
+        batch).
     min_samples : int
         Samples needed before the first fit.
     """
@@ -351,7 +353,8 @@ class OnlineSensorModel:
             st.samples[idx] = rows
             st.head = int((st.head + len(rows)) % self.window)
         st.since_fit += len(rows)
-        if len(st.samples) >= self.min_samples and st.since_fit >= self.refit_every:
+        due = max(self.refit_every, len(st.samples) // 3)
+        if len(st.samples) >= self.min_samples and st.since_fit >= due:
             st.since_fit = 0
             st.scales = self._fit_bands(st.samples)
 

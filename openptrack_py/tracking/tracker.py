@@ -217,6 +217,7 @@ class Tracker:
         self.unseen_stop_s = unseen_stop_s
         self.shared_noise_factor = shared_noise_factor
         self._sensor_index: dict[str, int] = {}
+        self._stateful_cache: tuple[tuple[int, ...], list[bool]] | None = None
         self.detector_weight = detector_weight
         self.min_confidence_detections = min_confidence_detections
         self.min_confidence_keepalive = min_confidence_keepalive
@@ -265,6 +266,14 @@ class Tracker:
             self.merger,
             self.identity,
         )
+
+    def _stateful(self) -> list[tuple[object, bool]]:
+        """Every role with whether it keeps state of its own (looked up once per role)."""
+        roles = self.roles
+        if self._stateful_cache is None or self._stateful_cache[0] != tuple(map(id, roles)):
+            flags = [isinstance(r, Stateful) for r in roles]
+            self._stateful_cache = (tuple(map(id, roles)), flags)
+        return list(zip(roles, self._stateful_cache[1], strict=True))
 
     # ------------------------------------------------------------------- public
 
@@ -357,7 +366,7 @@ class Tracker:
 
     def _snapshot(self) -> _Snapshot:
         c = self.counters
-        roles = tuple(r.snapshot() if isinstance(r, Stateful) else None for r in self.roles)
+        roles = tuple(r.snapshot() if stateful else None for r, stateful in self._stateful())
         return _Snapshot(
             self.table.copy(), self.lost.copy(), self.time, self.max_id, c["tracks_started"],
             c["tracks_deleted"], roles,
@@ -369,9 +378,9 @@ class Tracker:
         # what happened after the snapshot is undone, and will be counted again on replay
         self.counters["tracks_started"] = snapshot.started
         self.counters["tracks_deleted"] = snapshot.deleted
-        for role, state in zip(self.roles, snapshot.roles, strict=True):
-            if isinstance(role, Stateful):
-                role.restore(state)
+        for (role, stateful), state in zip(self._stateful(), snapshot.roles, strict=True):
+            if stateful:
+                role.restore(state)  # type: ignore[attr-defined]
 
     def _apply_late(self, batch: DetectionBatch) -> None:
         """Replay from the last state before ``batch``'s capture, or drop it."""
