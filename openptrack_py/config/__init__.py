@@ -51,10 +51,10 @@ from openptrack_py.config.tracker import ROBUSTNESS_OFF, TrackerConfig
 from openptrack_py.config.zenoh import ZenohConfig
 
 __all__ = [
-    "ROBUSTNESS_OFF",
     "ENDPOINT_PROTOCOLS",
     "HEIGHT_PRESETS",
     "NAME_PATTERN",
+    "ROBUSTNESS_OFF",
     "BackgroundConfig",
     "DetectorConfig",
     "GroundConfig",
