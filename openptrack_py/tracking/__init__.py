@@ -27,6 +27,7 @@ from openptrack_py.tracking.measurement import PositionMeasurement, PositionVelo
 from openptrack_py.tracking.merging import NoMerging, TrackMerger
 from openptrack_py.tracking.motion import ConstantVelocity
 from openptrack_py.tracking.ordering import ClockAligner, ReorderBuffer
+from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.pipeline import TrackingPipeline
 from openptrack_py.tracking.sensor_model import OnlineSensorModel, StaticSensorModel
 from openptrack_py.tracking.state import DetectionArrays, LostTracks, TrackTable
@@ -63,6 +64,7 @@ __all__ = [
     "TrackMerger",
     "TrackTable",
     "Tracker",
+    "TrackerParams",
     "TrackingPipeline",
     "UnscentedKalmanFilter",
     "build_tracker",

@@ -18,6 +18,7 @@ from openptrack_py.tracking.lifecycle import ConfidenceInitiator, TimeDeleter
 from openptrack_py.tracking.measurement import PositionMeasurement, PositionVelocityMeasurement
 from openptrack_py.tracking.merging import TrackMerger
 from openptrack_py.tracking.motion import ConstantVelocity
+from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.sensor_model import OnlineSensorModel
 from openptrack_py.tracking.tracker import Tracker
 
@@ -54,22 +55,24 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             cfg.merge_distance_m, cfg.merge_after_s, cfg.merge_max_speed_difference_mps
         ),
         identity=NullIdentity(),
-        detector_weight=cfg.detector_weight,
-        min_confidence_detections=cfg.min_confidence_detections,
-        min_confidence_keepalive=cfg.min_confidence_initialization,
-        confidence_decay_s=cfg.sec_before_old,
-        visibility_timeout_s=cfg.visibility_timeout_s,
-        initial_velocity_sigma_mps=cfg.initial_velocity_sigma_mps,
-        height_smoothing=cfg.height_smoothing,
-        publish_tentative=cfg.publish_tentative,
-        publish_unseen_s=cfg.publish_unseen_s,
-        publish_min_support=cfg.publish_min_support,
-        late_policy=cfg.late_policy,
-        max_lateness_s=cfg.max_lateness_s,
-        max_replay_steps=cfg.max_replay_steps,
-        max_tracks=cfg.max_tracks,
-        support_rate=cfg.support_rate,
-        keepalive_min_support=cfg.keepalive_min_support,
-        unseen_stop_s=cfg.unseen_stop_s,
-        shared_noise_factor=cfg.shared_noise_factor,
+        params=TrackerParams(
+            detector_weight=cfg.detector_weight,
+            min_confidence_detections=cfg.min_confidence_detections,
+            min_confidence_keepalive=cfg.min_confidence_initialization,
+            confidence_decay_s=cfg.sec_before_old,
+            visibility_timeout_s=cfg.visibility_timeout_s,
+            initial_velocity_sigma_mps=cfg.initial_velocity_sigma_mps,
+            height_smoothing=cfg.height_smoothing,
+            publish_tentative=cfg.publish_tentative,
+            publish_unseen_s=cfg.publish_unseen_s,
+            publish_min_support=cfg.publish_min_support,
+            late_policy=cfg.late_policy,
+            max_lateness_s=cfg.max_lateness_s,
+            max_replay_steps=cfg.max_replay_steps,
+            max_tracks=cfg.max_tracks,
+            support_rate=cfg.support_rate,
+            keepalive_min_support=cfg.keepalive_min_support,
+            unseen_stop_s=cfg.unseen_stop_s,
+            shared_noise_factor=cfg.shared_noise_factor,
+        ),
     )

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from openptrack_py.messages.detection import DetectionBatch
-from openptrack_py.messages.track import Track, TrackBatch, Visibility
+from openptrack_py.messages.track import TrackBatch
 from openptrack_py.tracking.base import (
     Associator,
     Deleter,
@@ -43,14 +43,23 @@ from openptrack_py.tracking.base import (
     SensorModel,
     Stateful,
 )
+from openptrack_py.tracking.bookkeeping import (
+    absorb,
+    damp_unseen,
+    fold_into,
+    learnable_updates,
+    new_rows,
+    take_over,
+    update_support,
+)
 from openptrack_py.tracking.gating import mahalanobis
 from openptrack_py.tracking.identity import NullIdentity
 from openptrack_py.tracking.merging import NoMerging
+from openptrack_py.tracking.params import TrackerParams
+from openptrack_py.tracking.publish import published_tracks
 from openptrack_py.tracking.replay import ReplayHistory
-from openptrack_py.tracking.sensor_model import SensorUpdates, StaticSensorModel
+from openptrack_py.tracking.sensor_model import StaticSensorModel
 from openptrack_py.tracking.state import (
-    HISTORY,
-    HISTORY_SPACING_S,
     DetectionArrays,
     LostTracks,
     TrackTable,
@@ -59,10 +68,18 @@ from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKa
 
 log = logging.getLogger(__name__)
 
-RECENT_WEIGHT = 0.3
-"""Weight of a new detection in a track's recent detected position (``recent_xy``)."""
-BIRTH_DETECTIONS = 5
-"""Detections averaged into where a track started (``TrackTable.birth_xy``)."""
+COUNTERS = (
+    "steps",
+    "late_applied",
+    "late_dropped",
+    "replayed_steps",
+    "tracks_started",
+    "tracks_deleted",
+    "tracks_merged",
+    "tracks_reattached",
+)
+"""The tracker's counters (reported in the tracker node's stats)."""
+
 REACQUIRE_S = 10.0
 """How long a lost confirmed track is remembered, so a person seen again there is known."""
 REACQUIRE_RADIUS_M = 0.5
@@ -108,49 +125,8 @@ class Tracker:
         Merges tracks that follow one person; none if omitted.
     identity : IdentityModel, optional
         Who each track is; :class:`~openptrack_py.tracking.identity.NullIdentity` if omitted.
-    detector_weight : float
-        Weight of detection confidence in the association cost.
-    min_confidence_detections : float
-        Detections below this confidence are ignored.
-    min_confidence_keepalive : float
-        Only detections at least this confident keep a track alive, count towards its
-        confirmation, or may capture a lost track (OpenPTrack's "last high-confidence
-        detection").
-    confidence_decay_s : float
-        A published track's confidence falls linearly to 0 over this long unseen.
-    visibility_timeout_s : float
-        Tracks unseen for longer are reported ``NOT_VISIBLE``.
-    initial_velocity_sigma_mps : float
-        Velocity uncertainty of a new track.
-    height_smoothing : float
-        Weight of a new height in the height's moving average.
-    publish_tentative : bool
-        Include tentative tracks in the output.
-    publish_unseen_s : float
-        Leave out of the output tracks unseen for longer (they stay alive).
-    publish_min_support : float
-        Leave out of the output tracks whose support has fallen below this (they stay
-        alive, and come back with their id when the evidence does).
-    late_policy : {"replay", "drop"}
-        Out-of-sequence batches: replay from the last snapshot before them, or drop.
-    max_lateness_s : float
-        How far back snapshots reach; later batches are dropped.
-    max_replay_steps : int
-        A late batch that would replay more steps than this is dropped.
-    max_tracks : int
-        No new track starts while this many exist.
-    support_rate : float
-        Weight of one expected frame in a track's support (see ``TrackTable.support``).
-    multi_sensor_s : float
-        A track detected by two sensors in a row within this long is seen by several.
-    keepalive_min_support : float
-        A confident detection keeps a track alive only if the track's support (before
-        that detection) is at least this.
-    unseen_stop_s : float
-        Time constant of the velocity decay of unseen tracks (0: none).
-    shared_noise_factor : float
-        Factor on the noise of a detection that two confirmed tracks could both have
-        produced (two people in one blob), so it drags its track less.
+    params : TrackerParams, optional
+        Every setting that is not a role (defaults if omitted).
 
     Examples
     --------
@@ -170,38 +146,13 @@ class Tracker:
         sensors: SensorModel | None = None,
         merger: Merger | None = None,
         identity: IdentityModel | None = None,
-        *,
-        detector_weight: float = -1.0,
-        min_confidence_detections: float = 0.0,
-        min_confidence_keepalive: float = 0.0,
-        confidence_decay_s: float = 1.0,
-        visibility_timeout_s: float = 0.25,
-        initial_velocity_sigma_mps: float = 1.5,
-        height_smoothing: float = 0.1,
-        publish_tentative: bool = False,
-        publish_unseen_s: float = 0.5,
-        publish_min_support: float = 0.0,
-        late_policy: str = "replay",
-        max_lateness_s: float = 1.0,
-        max_replay_steps: int = 64,
-        max_tracks: int = 1000,
-        support_rate: float = 0.2,
-        multi_sensor_s: float = 1.0,
-        keepalive_min_support: float = 0.0,
-        unseen_stop_s: float = 0.0,
-        shared_noise_factor: float = 1.0,
+        params: TrackerParams | None = None,
     ) -> None:
         if gater.dof != measurement.dim:
             raise ValueError(
                 f"Tracker: gater.dof ({gater.dof}) must equal the measurement dimension "
                 f"({measurement.dim})"
             )
-        if late_policy not in ("replay", "drop"):
-            raise ValueError(
-                f"Tracker: late_policy must be 'replay' or 'drop', got {late_policy!r}"
-            )
-        if not confidence_decay_s > 0:
-            raise ValueError(f"Tracker: confidence_decay_s must be > 0, got {confidence_decay_s}")
         self.motion = motion
         self.measurement = measurement
         self.gater = gater
@@ -211,26 +162,11 @@ class Tracker:
         self.sensors: SensorModel = sensors if sensors is not None else StaticSensorModel()
         self.merger: Merger = merger if merger is not None else NoMerging()
         self.identity: IdentityModel = identity if identity is not None else NullIdentity()
-        self.support_rate = support_rate
-        self.multi_sensor_s = multi_sensor_s
-        self.keepalive_min_support = keepalive_min_support
-        self.unseen_stop_s = unseen_stop_s
-        self.shared_noise_factor = shared_noise_factor
-        self._sensor_index: dict[str, int] = {}
-        self._stateful_cache: tuple[tuple[int, ...], list[bool]] | None = None
-        self.detector_weight = detector_weight
-        self.min_confidence_detections = min_confidence_detections
-        self.min_confidence_keepalive = min_confidence_keepalive
-        self.confidence_decay_s = confidence_decay_s
-        self.visibility_timeout_s = visibility_timeout_s
-        self.initial_velocity_sigma_mps = initial_velocity_sigma_mps
-        self.height_smoothing = height_smoothing
-        self.publish_tentative = publish_tentative
-        self.publish_unseen_s = publish_unseen_s
-        self.publish_min_support = publish_min_support
-        self.late_policy = late_policy
-        self.max_tracks = max_tracks
-        self.history: ReplayHistory[_Snapshot] = ReplayHistory(max_lateness_s, max_replay_steps)
+        self.params = params if params is not None else TrackerParams()
+        p = self.params
+        self.history: ReplayHistory[_Snapshot] = ReplayHistory(
+            p.max_lateness_s, p.max_replay_steps
+        )
         self.ukf = UnscentedKalmanFilter(MerweSigmaPoints(4))
         self.table = TrackTable()
         self.lost = LostTracks()
@@ -238,19 +174,9 @@ class Tracker:
         self.max_id = 0
         self.seq = 0
         self.frame_id = "world"
-        self.counters: dict[str, int] = dict.fromkeys(
-            (
-                "steps",
-                "late_applied",
-                "late_dropped",
-                "replayed_steps",
-                "tracks_started",
-                "tracks_deleted",
-                "tracks_merged",
-                "tracks_reattached",
-            ),
-            0,
-        )
+        self.counters: dict[str, int] = dict.fromkeys(COUNTERS, 0)
+        self._sensor_index: dict[str, int] = {}
+        self._stateful_cache: tuple[tuple[int, ...], list[bool]] | None = None
 
     @property
     def roles(self) -> tuple[object, ...]:
@@ -305,48 +231,14 @@ class Tracker:
 
     def output(self, t: float) -> TrackBatch:
         """The tracks as a message (confirmed ones unless ``publish_tentative``)."""
-        tb = self.table
         self.seq += 1
-        unseen = t - tb.last_seen
-        shown = (unseen <= self.publish_unseen_s) & (tb.support >= self.publish_min_support)
-        if not self.publish_tentative:
-            shown &= tb.confirmed
-        rows = np.flatnonzero(shown)
-        fresh = np.clip(1.0 - unseen[rows] / self.confidence_decay_s, 0.0, 1.0)
-        evidence = tb.confidence[rows] * tb.support[rows] * fresh
-        columns = zip(
-            tb.ids[rows].tolist(),
-            tb.x[rows].tolist(),
-            tb.z[rows].tolist(),
-            tb.height[rows].tolist(),
-            np.maximum(t - tb.first_seen[rows], 0.0).tolist(),
-            np.clip(evidence, 0.0, 1.0).tolist(),
-            (unseen[rows] <= self.visibility_timeout_s).tolist(),
-            tb.confirmed[rows].tolist(),
-            strict=True,
-        )
-        tracks = [
-            Track(
-                id=ident,
-                x=x[0],
-                y=x[1],
-                z=z,
-                height=height,
-                vx=x[2],
-                vy=x[3],
-                age=age,
-                confidence=conf,
-                visibility=Visibility.VISIBLE if visible else Visibility.NOT_VISIBLE,
-                confirmed=confirmed,
-            )
-            for ident, x, z, height, age, conf, visible, confirmed in columns
-        ]
+        tracks = published_tracks(self.table, t, self.params)
         return TrackBatch(
             stamp=t,
             seq=self.seq,
             frame_id=self.frame_id,
             tracks=tuple(self.identity.annotate(tracks)),
-            alive_ids=tuple(tb.ids.tolist()),
+            alive_ids=tuple(self.table.ids.tolist()),
             max_id=self.max_id,
         )
 
@@ -355,9 +247,9 @@ class Tracker:
     def _advance(self, batch: DetectionBatch) -> None:
         """One in-order step, remembered for replays."""
         t = batch.stamp
-        if self.late_policy == "replay" and self.history.max_lateness_s > 0:
+        if self.params.late_policy == "replay" and self.history.max_lateness_s > 0:
             self.history.remember(t, self._snapshot(), batch)
-        dets = DetectionArrays.from_batch(batch, self.min_confidence_detections)
+        dets = DetectionArrays.from_batch(batch, self.params.min_confidence_detections)
         dets = self.sensors.correct(dets)
         self._predict_to(t)
         assigned, d2 = self._associate_and_update(dets, t)
@@ -386,7 +278,7 @@ class Tracker:
         """Replay from the last state before ``batch``'s capture, or drop it."""
         assert self.time is not None
         rewind = None
-        if self.late_policy == "replay":
+        if self.params.late_policy == "replay":
             rewind = self.history.rewind(batch, self.time, lambda s: s.time)
         if rewind is None:
             self.counters["late_dropped"] += 1
@@ -406,26 +298,8 @@ class Tracker:
             tb.x, tb.cov = self.ukf.predict(
                 tb.x, tb.cov, dt, self.motion.fx, self.motion.noise(dt)
             )
-            self._damp_unseen(t, dt[0])
+            damp_unseen(tb, t, dt[0], self.params)
         self.time = t if self.time is None else max(self.time, t)
-
-    def _damp_unseen(self, t: float, dt: float) -> None:
-        """A person nobody sees is more likely to slow down than to walk on for ever.
-
-        While a track is unseen its velocity decays with time constant
-        ``unseen_stop_s`` (its covariance with it), so a track does not coast across the
-        room after someone who stopped or turned where no sensor sees them.
-        """
-        if self.unseen_stop_s <= 0:
-            return
-        tb = self.table
-        unseen = t - tb.last_seen > self.visibility_timeout_s
-        if not unseen.any():
-            return
-        k = math.exp(-dt / self.unseen_stop_s)
-        f = np.diag([1.0, 1.0, k, k])
-        tb.x[unseen] = tb.x[unseen] @ f
-        tb.cov[unseen] = f @ tb.cov[unseen] @ f
 
     def _pair_terms(
         self, dets: DetectionArrays, t: float
@@ -457,8 +331,8 @@ class Tracker:
         gated = allowed.copy()
         # A weak detection (clutter-like) may refine a track that is being seen, but may
         # not capture a lost track whose gate has grown wide.
-        weak = dets.confidence < self.min_confidence_keepalive
-        lost = t - tb.last_seen > self.visibility_timeout_s
+        weak = dets.confidence < self.params.min_confidence_keepalive
+        lost = t - tb.last_seen > self.params.visibility_timeout_s
         allowed &= ~(lost[:, None] & weak[None, :])
         if self.measurement.dim == 2:
             # a track only takes a detection it explains better than clutter does:
@@ -478,80 +352,36 @@ class Tracker:
         rows = np.array([p[0] for p in pairs])
         cols = np.array([p[1] for p in pairs])
         scale = self.sensors.noise_scale(dets.sensor_id, dets.distance)[cols]
-        self._learn(
-            rows, cols, dets, proj.z[rows, 0:2], proj.pzz[rows, 0:2, 0:2],
+        updates = learnable_updates(
+            tb, rows, cols, dets, proj.z[rows, 0:2], proj.pzz[rows, 0:2, 0:2],
             r[rows, cols, 0:2, 0:2] / scale[:, None, None], gated, t,
+            self._sensor_index.get(dets.sensor_id, -1), float(self.gater.threshold),
+            self.params.multi_sensor_s,
         )  # fmt: skip
+        if updates is not None:
+            self.sensors.learn(updates)
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
         r_used = r[rows, cols]
-        if self.shared_noise_factor > 1.0:
+        if self.params.shared_noise_factor > 1.0:
             # a detection two confirmed tracks could both have produced may be both
             # people in one blob: it pulls its track less, so neither is dragged onto
             # the other's course
             shared = (gated[:, cols] & tb.confirmed[:, None]).sum(axis=0) >= 2
             if shared.any():
                 r_used = r_used.copy()
-                r_used[shared] *= self.shared_noise_factor
+                r_used[shared] *= self.params.shared_noise_factor
         tb.x[rows], tb.cov[rows] = self.ukf.update(
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used
         )
         prior_support = tb.support[rows].copy()
         self._update_support(rows, dets.sensor_id)
-        self._absorb(rows, cols, dets, t, prior_support)
+        index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
+        absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
         self.merger.observe(tb, rows, t)
         self.identity.observe(tb, rows, cols, dets, t)
         assigned[cols] = True
         self.sensors.observe_frame(dets.sensor_id, int((~assigned).sum()))
         return assigned, d2
-
-    def _learn(
-        self,
-        rows: np.ndarray,
-        cols: np.ndarray,
-        dets: DetectionArrays,
-        predicted: np.ndarray,
-        pzz: np.ndarray,
-        model: np.ndarray,
-        gated: np.ndarray,
-        t: float,
-    ) -> None:
-        """Hand the sensor model this batch's unambiguous updates of settled tracks."""
-        tb = self.table
-        clear = (
-            tb.confirmed[rows]
-            & (t - tb.first_seen[rows] >= 1.0)
-            & (gated[rows].sum(axis=1) == 1)
-            & (gated[:, cols].sum(axis=0) == 1)
-        )
-        if not clear.any():
-            return
-        index = self._sensor_index.get(dets.sensor_id, -1)
-        multi = (t - tb.multi_t[rows] <= self.multi_sensor_s) | (tb.last_sensor[rows] != index)
-        pzz, model, kept = pzz[clear], model[clear], cols[clear]
-        self.sensors.learn(
-            SensorUpdates(
-                sensor_id=dets.sensor_id,
-                detected=dets.xy[kept],
-                predicted=predicted[clear],
-                distance=dets.distance[kept],
-                track_var=0.5 * (pzz[:, 0, 0] + pzz[:, 1, 1]),
-                model_var=0.5 * (model[:, 0, 0] + model[:, 1, 1]),
-                gate=float(self.gater.threshold),
-                multi_sensor=multi[clear],
-            )
-        )
-
-    def _update_support(self, hit_rows: np.ndarray, sensor_id: str) -> None:
-        """Tracks this sensor should have seen gain support if detected, lose it if not."""
-        tb = self.table
-        if not len(tb):
-            return
-        expected = self.sensors.covers(sensor_id, tb.x[:, 0:2])
-        hit = np.zeros(len(tb), dtype=bool)
-        hit[hit_rows] = True
-        expected |= hit
-        a = self.support_rate
-        tb.support[expected] += a * (hit[expected] - tb.support[expected])
 
     def _assign_by_stage(self, cost: np.ndarray, allowed: np.ndarray) -> list[tuple[int, int]]:
         """Confirmed tracks choose first; tentative tracks only get what is left.
@@ -579,54 +409,13 @@ class Tracker:
         gate but pays for it, so it cannot take a detection from a track that predicts it
         well (plain Mahalanobis distance would favour the uncertain one).
         """
-        return d2 + logdet + self.detector_weight * dets.confidence[None, :]
-
-    def _absorb(
-        self,
-        rows: np.ndarray,
-        cols: np.ndarray,
-        dets: DetectionArrays,
-        t: float,
-        prior_support: np.ndarray,
-    ) -> None:
-        """Bookkeeping of tracks that got a detection at time ``t``."""
-        tb = self.table
-        a = self.height_smoothing
-        tb.height[rows] = (1 - a) * tb.height[rows] + a * dets.height[cols]
-        tb.z[rows] = (1 - a) * tb.z[rows] + a * dets.z[cols]
-        tb.confidence[rows] = 0.8 * tb.confidence[rows] + 0.2 * dets.confidence[cols]
-        # Only confident detections keep a track alive (OpenPTrack's "last high-confidence
-        # detection"), and only while the track's support holds: a lost track whose
-        # gate has grown wide cannot live on a confident false positive now and then.
-        confident = dets.confidence[cols] >= self.min_confidence_keepalive
-        confident &= prior_support >= self.keepalive_min_support
-        tb.last_seen[rows[confident]] = np.maximum(tb.last_seen[rows[confident]], t)
-        tb.hits[rows] += confident
-        b = RECENT_WEIGHT
-        tb.recent_xy[rows] = (1 - b) * tb.recent_xy[rows] + b * dets.xy[cols]
-        # where the track started: the mean of its first few detections
-        young = tb.birth_n[rows] < BIRTH_DETECTIONS
-        yr, yc = rows[young], cols[young]
-        n = tb.birth_n[yr][:, None]
-        tb.birth_xy[yr] = (tb.birth_xy[yr] * n + dets.xy[yc]) / (n + 1)
-        tb.birth_n[yr] += 1
-        # which sensors see it: detections from two sensors in a row
-        index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
-        other = tb.last_sensor[rows] != index
-        tb.multi_t[rows[other]] = t
-        tb.last_sensor[rows] = index
-        # history of posterior positions, at most one entry per spacing interval; the
-        # oldest (or an empty) slot is overwritten
-        due = rows[t - tb.hist_t[rows].max(axis=1) >= HISTORY_SPACING_S]
-        slots = np.argmin(tb.hist_t[due], axis=1)
-        tb.hist_t[due, slots] = t
-        tb.hist_xy[due, slots] = tb.x[due, 0:2]
+        return d2 + logdet + self.params.detector_weight * dets.confidence[None, :]
 
     def _start_tracks(
         self, dets: DetectionArrays, assigned: np.ndarray, d2: np.ndarray, t: float
     ) -> None:
         new = self.initiator.initiate(dets, assigned, d2, self.table)
-        room = self.max_tracks - len(self.table)
+        room = self.params.max_tracks - len(self.table)
         if room <= 0 or not len(new):
             return
         new = new[:room]
@@ -634,40 +423,11 @@ class Tracker:
         ids = np.arange(self.max_id + 1, self.max_id + 1 + n, dtype=np.int64)
         self.max_id += n
         self.counters["tracks_started"] += n
-        x = np.zeros((n, 4))
-        x[:, 0:2] = dets.xy[new]
         pos_var = self.measurement.position_noise(dets.distance[new])[:, 0, 0]
-        cov = np.zeros((n, 4, 4))
-        cov[:, 0, 0] = cov[:, 1, 1] = pos_var
-        cov[:, 2, 2] = cov[:, 3, 3] = self.initial_velocity_sigma_mps**2
-        hist_t = np.full((n, HISTORY), -np.inf)
-        hist_t[:, 0] = t
-        hist_xy = np.zeros((n, HISTORY, 2))
-        hist_xy[:, 0] = dets.xy[new]
+        index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
+        reborn = self.lost.near(dets.xy[new], t, REACQUIRE_RADIUS_M, REACQUIRE_SPEED_MPS)
         first = len(self.table)
-        self.table.append(
-            ids=ids,
-            x=x,
-            cov=cov,
-            z=dets.z[new],
-            height=dets.height[new],
-            confidence=dets.confidence[new],
-            first_seen=np.full(n, t),
-            last_seen=np.full(n, t),
-            hits=np.ones(n, dtype=np.int64),
-            confirmed=np.zeros(n, dtype=bool),
-            hist_t=hist_t,
-            hist_xy=hist_xy,
-            support=np.ones(n),
-            birth_xy=dets.xy[new].copy(),
-            recent_xy=dets.xy[new].copy(),
-            birth_n=np.ones(n, dtype=np.int64),
-            last_sensor=np.full(
-                n, self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
-            ),
-            multi_t=np.full(n, -np.inf),
-            reborn=self.lost.near(dets.xy[new], t, REACQUIRE_RADIUS_M, REACQUIRE_SPEED_MPS),
-        )
+        self.table.append(**new_rows(dets, new, ids, t, pos_var, index, reborn, self.params))
         self.identity.started(self.table, np.arange(first, first + n), dets.subset(new), t)
 
     def _lifecycle(self, t: float) -> None:
@@ -686,47 +446,28 @@ class Tracker:
             self.counters["tracks_deleted"] += int(gone.sum())
             tb.keep(~gone)
 
+    def _update_support(self, hit_rows: np.ndarray, sensor_id: str) -> None:
+        """Tracks this sensor should have seen gain support if detected, lose it if not."""
+        if len(self.table):
+            expected = self.sensors.covers(sensor_id, self.table.x[:, 0:2])
+            update_support(self.table, hit_rows, expected, self.params.support_rate)
+
     def _merge(self, t: float) -> None:
         """Fold each track that follows the same person as an older one into it."""
         pairs = self.merger.merge(self.table, t)
-        if not pairs:
-            return
-        tb = self.table
-        keep = np.array([p[0] for p in pairs])
-        drop = np.array([p[1] for p in pairs])
-        # the kept track moves to the information-weighted mean of both positions
-        pk, pd = tb.cov[keep, 0:2, 0:2], tb.cov[drop, 0:2, 0:2]
-        ik, idr = np.linalg.inv(pk), np.linalg.inv(pd)
-        fused = np.linalg.solve(
-            ik + idr,
-            (ik @ tb.x[keep, 0:2, None] + idr @ tb.x[drop, 0:2, None]),
-        )[..., 0]
-        tb.x[keep, 0:2] = fused
-        tb.first_seen[keep] = np.minimum(tb.first_seen[keep], tb.first_seen[drop])
-        tb.last_seen[keep] = np.maximum(tb.last_seen[keep], tb.last_seen[drop])
-        tb.hits[keep] += tb.hits[drop]
-        tb.support[keep] = np.maximum(tb.support[keep], tb.support[drop])
-        tb.confidence[keep] = np.maximum(tb.confidence[keep], tb.confidence[drop])
-        self.identity.ended(tb, drop, t)
-        self.counters["tracks_merged"] += len(drop)
-        self.counters["tracks_deleted"] += len(drop)
-        mask = np.ones(len(tb), dtype=bool)
-        mask[drop] = False
-        tb.keep(mask)
+        if pairs:
+            keep, drop = (np.array(rows) for rows in zip(*pairs, strict=True))
+            self.identity.ended(self.table, drop, t)
+            fold_into(self.table, keep, drop)
+            self.counters["tracks_merged"] += len(drop)
+            self.counters["tracks_deleted"] += len(drop)
 
     def _reattach(self, t: float, new: np.ndarray) -> None:
         """A track confirmed now takes the id of the lost track its person had."""
-        pairs = self.merger.reattach(self.table, t, new, self.visibility_timeout_s)
-        if not pairs:
-            return
-        tb = self.table
-        lost = np.array([p[0] for p in pairs])
-        found = np.array([p[1] for p in pairs])
-        self.identity.ended(tb, found, t)
-        tb.ids[found] = tb.ids[lost]
-        tb.first_seen[found] = tb.first_seen[lost]
-        self.counters["tracks_reattached"] += len(pairs)
-        self.counters["tracks_deleted"] += len(pairs)
-        mask = np.ones(len(tb), dtype=bool)
-        mask[lost] = False
-        tb.keep(mask)
+        pairs = self.merger.reattach(self.table, t, new, self.params.visibility_timeout_s)
+        if pairs:
+            lost, found = (np.array(rows) for rows in zip(*pairs, strict=True))
+            self.identity.ended(self.table, found, t)
+            take_over(self.table, lost, found)
+            self.counters["tracks_reattached"] += len(pairs)
+            self.counters["tracks_deleted"] += len(pairs)

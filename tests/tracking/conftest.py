@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from openptrack_py.messages.track import Track
-from openptrack_py.tracking import DetectionArrays, Tracker, TrackTable
+from openptrack_py.tracking import DetectionArrays, Tracker, TrackerParams, TrackTable
 
 
 class StillMotion:
@@ -200,7 +200,7 @@ def stub_tracker(identity: object | None = None, **kw: object) -> Tracker:
         PerfectSensors(),
         NeverMerge(),
         identity,  # type: ignore[arg-type]
-        **kw,  # type: ignore[arg-type]
+        TrackerParams(**kw),  # type: ignore[arg-type]
     )
 
 

@@ -1,0 +1,218 @@
+"""Bookkeeping of the track table: what a step does to tracks' rows.
+
+Plain functions on :class:`~openptrack_py.tracking.state.TrackTable`, so that the tracker
+reads as the sequence of a step (predict, associate, update, start, confirm, merge,
+delete) and each piece of bookkeeping can be tested on its own: new rows, absorbing
+detections, support, slowing unseen tracks, folding a merged track into the older one, a
+track taking over a lost track's id, and which updates a sensor model may learn from.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from openptrack_py.tracking.params import TrackerParams
+from openptrack_py.tracking.sensor_model import SensorUpdates
+from openptrack_py.tracking.state import HISTORY, HISTORY_SPACING_S, DetectionArrays, TrackTable
+
+RECENT_WEIGHT = 0.3
+"""Weight of a new detection in a track's recent detected position (``recent_xy``)."""
+BIRTH_DETECTIONS = 5
+"""Detections averaged into where a track started (``TrackTable.birth_xy``)."""
+
+
+def absorb(
+    tb: TrackTable,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    dets: DetectionArrays,
+    t: float,
+    prior_support: np.ndarray,
+    sensor_index: int,
+    params: TrackerParams,
+) -> None:
+    """Bookkeeping of tracks ``rows`` that got detections ``cols`` at time ``t``.
+
+    Height, centroid and confidence averages; keepalive (``last_seen``, ``hits``) by
+    confident detections while the track's ``prior_support`` holds; where it is now and
+    where it started by its detections; which sensors see it; its position history.
+    """
+    a = params.height_smoothing
+    tb.height[rows] = (1 - a) * tb.height[rows] + a * dets.height[cols]
+    tb.z[rows] = (1 - a) * tb.z[rows] + a * dets.z[cols]
+    tb.confidence[rows] = 0.8 * tb.confidence[rows] + 0.2 * dets.confidence[cols]
+    # Only confident detections keep a track alive (OpenPTrack's "last high-confidence
+    # detection"), and only while the track's support holds: a lost track whose
+    # gate has grown wide cannot live on a confident false positive now and then.
+    confident = dets.confidence[cols] >= params.min_confidence_keepalive
+    confident &= prior_support >= params.keepalive_min_support
+    tb.last_seen[rows[confident]] = np.maximum(tb.last_seen[rows[confident]], t)
+    tb.hits[rows] += confident
+    b = RECENT_WEIGHT
+    tb.recent_xy[rows] = (1 - b) * tb.recent_xy[rows] + b * dets.xy[cols]
+    # where the track started: the mean of its first few detections
+    young = tb.birth_n[rows] < BIRTH_DETECTIONS
+    yr, yc = rows[young], cols[young]
+    n = tb.birth_n[yr][:, None]
+    tb.birth_xy[yr] = (tb.birth_xy[yr] * n + dets.xy[yc]) / (n + 1)
+    tb.birth_n[yr] += 1
+    # which sensors see it: detections from two sensors in a row
+    other = tb.last_sensor[rows] != sensor_index
+    tb.multi_t[rows[other]] = t
+    tb.last_sensor[rows] = sensor_index
+    # history of posterior positions, at most one entry per spacing interval; the
+    # oldest (or an empty) slot is overwritten
+    due = rows[t - tb.hist_t[rows].max(axis=1) >= HISTORY_SPACING_S]
+    slots = np.argmin(tb.hist_t[due], axis=1)
+    tb.hist_t[due, slots] = t
+    tb.hist_xy[due, slots] = tb.x[due, 0:2]
+
+
+def new_rows(
+    dets: DetectionArrays,
+    new: np.ndarray,
+    ids: np.ndarray,
+    t: float,
+    position_var: np.ndarray,
+    sensor_index: int,
+    reborn: np.ndarray,
+    params: TrackerParams,
+) -> dict[str, np.ndarray]:
+    """Table rows (one array per column) of tentative tracks started by detections ``new``."""
+    n = len(new)
+    x = np.zeros((n, 4))
+    x[:, 0:2] = dets.xy[new]
+    cov = np.zeros((n, 4, 4))
+    cov[:, 0, 0] = cov[:, 1, 1] = position_var
+    cov[:, 2, 2] = cov[:, 3, 3] = params.initial_velocity_sigma_mps**2
+    hist_t = np.full((n, HISTORY), -np.inf)
+    hist_t[:, 0] = t
+    hist_xy = np.zeros((n, HISTORY, 2))
+    hist_xy[:, 0] = dets.xy[new]
+    return {
+        "ids": ids,
+        "x": x,
+        "cov": cov,
+        "z": dets.z[new],
+        "height": dets.height[new],
+        "confidence": dets.confidence[new],
+        "first_seen": np.full(n, t),
+        "last_seen": np.full(n, t),
+        "hits": np.ones(n, dtype=np.int64),
+        "confirmed": np.zeros(n, dtype=bool),
+        "hist_t": hist_t,
+        "hist_xy": hist_xy,
+        "support": np.ones(n),
+        "birth_xy": dets.xy[new].copy(),
+        "recent_xy": dets.xy[new].copy(),
+        "birth_n": np.ones(n, dtype=np.int64),
+        "last_sensor": np.full(n, sensor_index),
+        "multi_t": np.full(n, -np.inf),
+        "reborn": reborn,
+    }
+
+
+def update_support(
+    tb: TrackTable, hit_rows: np.ndarray, expected: np.ndarray, rate: float
+) -> None:
+    """Tracks ``expected`` to be seen (and those hit) move their support toward hit/miss."""
+    hit = np.zeros(len(tb), dtype=bool)
+    hit[hit_rows] = True
+    expected = expected | hit
+    tb.support[expected] += rate * (hit[expected] - tb.support[expected])
+
+
+def damp_unseen(tb: TrackTable, t: float, dt: float, params: TrackerParams) -> None:
+    """A person nobody sees is more likely to slow down than to walk on for ever.
+
+    While a track is unseen its velocity decays with time constant
+    ``unseen_stop_s`` (its covariance with it), so a track does not coast across the
+    room after someone who stopped or turned where no sensor sees them.
+    """
+    if params.unseen_stop_s <= 0:
+        return
+    unseen = t - tb.last_seen > params.visibility_timeout_s
+    if not unseen.any():
+        return
+    k = math.exp(-dt / params.unseen_stop_s)
+    f = np.diag([1.0, 1.0, k, k])
+    tb.x[unseen] = tb.x[unseen] @ f
+    tb.cov[unseen] = f @ tb.cov[unseen] @ f
+
+
+def fold_into(tb: TrackTable, keep: np.ndarray, drop: np.ndarray) -> None:
+    """Merge tracks ``drop`` into ``keep`` (pairwise) and remove them.
+
+    The kept track moves to the information-weighted mean of both positions and keeps
+    the earliest start, the latest sighting and the stronger evidence.
+    """
+    ik = np.linalg.inv(tb.cov[keep, 0:2, 0:2])
+    idr = np.linalg.inv(tb.cov[drop, 0:2, 0:2])
+    fused = np.linalg.solve(ik + idr, ik @ tb.x[keep, 0:2, None] + idr @ tb.x[drop, 0:2, None])[
+        ..., 0
+    ]
+    tb.x[keep, 0:2] = fused
+    tb.first_seen[keep] = np.minimum(tb.first_seen[keep], tb.first_seen[drop])
+    tb.last_seen[keep] = np.maximum(tb.last_seen[keep], tb.last_seen[drop])
+    tb.hits[keep] += tb.hits[drop]
+    tb.support[keep] = np.maximum(tb.support[keep], tb.support[drop])
+    tb.confidence[keep] = np.maximum(tb.confidence[keep], tb.confidence[drop])
+    _remove(tb, drop)
+
+
+def take_over(tb: TrackTable, lost: np.ndarray, found: np.ndarray) -> None:
+    """Tracks ``found`` take the ids (and start times) of ``lost``, which are removed."""
+    tb.ids[found] = tb.ids[lost]
+    tb.first_seen[found] = tb.first_seen[lost]
+    _remove(tb, lost)
+
+
+def _remove(tb: TrackTable, rows: np.ndarray) -> None:
+    mask = np.ones(len(tb), dtype=bool)
+    mask[rows] = False
+    tb.keep(mask)
+
+
+def learnable_updates(
+    tb: TrackTable,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    dets: DetectionArrays,
+    predicted: np.ndarray,
+    pzz: np.ndarray,
+    model: np.ndarray,
+    gated: np.ndarray,
+    t: float,
+    sensor_index: int,
+    gate: float,
+    multi_sensor_s: float = 1.0,
+) -> SensorUpdates | None:
+    """The updates of one batch that a sensor model may learn from, or ``None``.
+
+    Only settled, unambiguous ones: a confirmed track at least a second old, with one
+    detection in its gate, that detection in no other track's gate. ``predicted``,
+    ``pzz`` and ``model`` are per assigned pair: the predicted position, its covariance
+    and the configured (unscaled) measurement covariance.
+    """
+    clear = (
+        tb.confirmed[rows]
+        & (t - tb.first_seen[rows] >= 1.0)
+        & (gated[rows].sum(axis=1) == 1)
+        & (gated[:, cols].sum(axis=0) == 1)
+    )
+    if not clear.any():
+        return None
+    multi = (t - tb.multi_t[rows] <= multi_sensor_s) | (tb.last_sensor[rows] != sensor_index)
+    pzz, model, kept = pzz[clear], model[clear], cols[clear]
+    return SensorUpdates(
+        sensor_id=dets.sensor_id,
+        detected=dets.xy[kept],
+        predicted=predicted[clear],
+        distance=dets.distance[kept],
+        track_var=0.5 * (pzz[:, 0, 0] + pzz[:, 1, 1]),
+        model_var=0.5 * (model[:, 0, 0] + model[:, 1, 1]),
+        gate=gate,
+        multi_sensor=multi[clear],
+    )
