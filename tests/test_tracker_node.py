@@ -102,7 +102,7 @@ def _sender(client: Client, stop: threading.Event, positions: Callable[[int], li
 
 def test_one_person_becomes_one_confirmed_track(tracker_node: tuple) -> None:
     _proc, client, _endpoint, _log = tracker_node
-    for i in range(30):
+    for i in range(45):  # 0.9 m: a track is confirmed once its person has moved
         client.send((1.0 + 0.02 * i, 2.0))
         time.sleep(1 / 30)
     wait_for(lambda: any(b.tracks for b in client.received()), 10, "a published track")
@@ -110,7 +110,7 @@ def test_one_person_becomes_one_confirmed_track(tracker_node: tuple) -> None:
     ids = {t.id for b in batches for t in b.tracks}
     assert ids == {1}
     last = batches[-1].tracks[0]
-    assert last.x == pytest.approx(1.58, abs=0.1) and last.y == pytest.approx(2.0, abs=0.05)
+    assert last.x == pytest.approx(1.88, abs=0.1) and last.y == pytest.approx(2.0, abs=0.05)
     assert last.vx == pytest.approx(0.6, abs=0.25)  # 0.02 m per 1/30 s
     # tracks are published once per step, in order
     seqs = [b.seq for b in batches]
@@ -149,7 +149,7 @@ def test_live_change_applies_on_the_next_step_and_bad_ones_are_refused(
         refusal = json.loads(bad.stdout)
         assert not refusal["accepted"]
         assert "gate_probability: must be <= 0.99999 (received 1.5)" in refusal["error"]
-        assert refusal["config"]["gate_probability"] == 0.95  # unchanged
+        assert refusal["config"]["gate_probability"] == 0.99  # unchanged
         unknown = _config(endpoint, "gate_probabilty=0.9")
         assert unknown.returncode == 2
         assert "did you mean 'gate_probability'?" in json.loads(unknown.stdout)["error"]
