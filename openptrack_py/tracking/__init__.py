@@ -30,7 +30,7 @@ from openptrack_py.tracking.ordering import ClockAligner, ReorderBuffer
 from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.pipeline import TrackingPipeline
 from openptrack_py.tracking.sensor_model import OnlineSensorModel, StaticSensorModel
-from openptrack_py.tracking.state import DetectionArrays, LostTracks, TrackTable
+from openptrack_py.tracking.state import DetectionArrays, TrackTable
 from openptrack_py.tracking.tracker import Tracker
 from openptrack_py.tracking.ukf import MerweSigmaPoints, UnscentedKalmanFilter
 
@@ -46,7 +46,6 @@ __all__ = [
     "GlobalNearestNeighbour",
     "IdentityModel",
     "Initiator",
-    "LostTracks",
     "MeasurementModel",
     "Merger",
     "MerweSigmaPoints",

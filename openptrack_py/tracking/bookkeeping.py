@@ -44,10 +44,11 @@ def absorb(
     tb.z[rows] = (1 - a) * tb.z[rows] + a * dets.z[cols]
     tb.confidence[rows] = 0.8 * tb.confidence[rows] + 0.2 * dets.confidence[cols]
     # Only confident detections keep a track alive (OpenPTrack's "last high-confidence
-    # detection"), and only while the track's support holds: a lost track whose
+    # detection"), and a confirmed track only while its support holds: a lost track whose
     # gate has grown wide cannot live on a confident false positive now and then.
+    # (A tentative track's evidence is judged by the initiator.)
     confident = dets.confidence[cols] >= params.min_confidence_keepalive
-    confident &= prior_support >= params.keepalive_min_support
+    confident &= ~tb.confirmed[rows] | (prior_support >= params.keepalive_min_support)
     tb.last_seen[rows[confident]] = np.maximum(tb.last_seen[rows[confident]], t)
     tb.hits[rows] += confident
     b = RECENT_WEIGHT
@@ -77,7 +78,6 @@ def new_rows(
     t: float,
     position_var: np.ndarray,
     sensor_index: int,
-    reborn: np.ndarray,
     params: TrackerParams,
 ) -> dict[str, np.ndarray]:
     """Table rows (one array per column) of tentative tracks started by detections ``new``."""
@@ -110,7 +110,6 @@ def new_rows(
         "birth_n": np.ones(n, dtype=np.int64),
         "last_sensor": np.full(n, sensor_index),
         "multi_t": np.full(n, -np.inf),
-        "reborn": reborn,
     }
 
 

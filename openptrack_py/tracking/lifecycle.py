@@ -99,7 +99,7 @@ class ConfidenceInitiator:
         if self.min_displacement_m > 0:
             # measured on the detections, not the filter (which drifts while unseen)
             moved = np.hypot(*(table.recent_xy - table.birth_xy).T)
-            ready &= (moved >= self.min_displacement_m) | table.reborn
+            ready &= moved >= self.min_displacement_m
         return table.confirmed | ready
 
 

@@ -120,9 +120,6 @@ class TrackTable:
         Index of the sensor of the track's last detection.
     multi_t : ndarray
         Last time the track's detections came from two different sensors in a row.
-    reborn : ndarray of bool
-        The track started where a confirmed track was recently lost: a person seen
-        again, who need not prove they move.
     """
 
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
@@ -143,12 +140,11 @@ class TrackTable:
     recent_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     last_sensor: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     multi_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    reborn: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     COLUMNS = (
         "ids", "x", "cov", "z", "height", "confidence", "first_seen", "last_seen", "hits",
         "confirmed", "hist_t", "hist_xy", "support", "birth_xy", "birth_n", "recent_xy",
-        "last_sensor", "multi_t", "reborn",
+        "last_sensor", "multi_t",
     )  # fmt: skip
 
     def __len__(self) -> int:
@@ -167,41 +163,3 @@ class TrackTable:
         """Add rows (one array per column, same length)."""
         for name in self.COLUMNS:
             setattr(self, name, np.concatenate([getattr(self, name), rows[name]]))
-
-
-@dataclass
-class LostTracks:
-    """Where and when recently deleted confirmed tracks were last seen.
-
-    Parameters
-    ----------
-    xy : ndarray
-        ``(n, 2)`` last estimated positions.
-    t : ndarray
-        ``(n,)`` deletion times.
-    """
-
-    xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-    def copy(self) -> LostTracks:
-        """An independent copy."""
-        return LostTracks(self.xy.copy(), self.t.copy())
-
-    def add(self, xy: np.ndarray, t: float) -> None:
-        """Remember tracks lost at ``t`` at positions ``xy``."""
-        self.xy = np.concatenate([self.xy, xy.reshape(-1, 2)])
-        self.t = np.concatenate([self.t, np.full(len(xy), t)])
-
-    def forget_before(self, t: float) -> None:
-        """Drop what was lost before ``t``."""
-        keep = self.t >= t
-        self.xy, self.t = self.xy[keep], self.t[keep]
-
-    def near(self, xy: np.ndarray, t: float, radius_m: float, speed_mps: float) -> np.ndarray:
-        """Mask of positions a recently lost person could have walked to by ``t``."""
-        if not len(self.t) or not len(xy):
-            return np.zeros(len(xy), dtype=bool)
-        reach = radius_m + speed_mps * (t - self.t)
-        gap = np.hypot(*(xy[:, None, :] - self.xy[None, :, :]).transpose(2, 0, 1))
-        return (gap <= reach[None, :]).any(axis=1)

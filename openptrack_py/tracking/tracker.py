@@ -61,7 +61,6 @@ from openptrack_py.tracking.replay import ReplayHistory
 from openptrack_py.tracking.sensor_model import StaticSensorModel
 from openptrack_py.tracking.state import (
     DetectionArrays,
-    LostTracks,
     TrackTable,
 )
 from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKalmanFilter
@@ -80,20 +79,12 @@ COUNTERS = (
 )
 """The tracker's counters (reported in the tracker node's stats)."""
 
-REACQUIRE_S = 10.0
-"""How long a lost confirmed track is remembered, so a person seen again there is known."""
-REACQUIRE_RADIUS_M = 0.5
-REACQUIRE_SPEED_MPS = 0.2
-"""A person lost ``dt`` ago is looked for within ``radius + speed * dt`` of where they
-were: someone who was hidden, not anyone who could have walked anywhere."""
-
 
 @dataclass(frozen=True)
 class _Snapshot:
     """The tracker's whole state before one step."""
 
     table: TrackTable
-    lost: LostTracks
     time: float | None
     max_id: int
     started: int
@@ -169,7 +160,6 @@ class Tracker:
         )
         self.ukf = UnscentedKalmanFilter(MerweSigmaPoints(4))
         self.table = TrackTable()
-        self.lost = LostTracks()
         self.time: float | None = None
         self.max_id = 0
         self.seq = 0
@@ -219,7 +209,6 @@ class Tracker:
         stateful role of the same kind in the same place.
         """
         self.table = other.table
-        self.lost = other.lost
         self.time = other.time
         self.max_id = other.max_id
         self.seq = other.seq
@@ -260,13 +249,12 @@ class Tracker:
         c = self.counters
         roles = tuple(r.snapshot() if stateful else None for r, stateful in self._stateful())
         return _Snapshot(
-            self.table.copy(), self.lost.copy(), self.time, self.max_id, c["tracks_started"],
+            self.table.copy(), self.time, self.max_id, c["tracks_started"],
             c["tracks_deleted"], roles,
         )  # fmt: skip
 
     def _restore(self, snapshot: _Snapshot) -> None:
         self.table, self.time, self.max_id = snapshot.table, snapshot.time, snapshot.max_id
-        self.lost = snapshot.lost
         # what happened after the snapshot is undone, and will be counted again on replay
         self.counters["tracks_started"] = snapshot.started
         self.counters["tracks_deleted"] = snapshot.deleted
@@ -425,9 +413,8 @@ class Tracker:
         self.counters["tracks_started"] += n
         pos_var = self.measurement.position_noise(dets.distance[new])[:, 0, 0]
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
-        reborn = self.lost.near(dets.xy[new], t, REACQUIRE_RADIUS_M, REACQUIRE_SPEED_MPS)
         first = len(self.table)
-        self.table.append(**new_rows(dets, new, ids, t, pos_var, index, reborn, self.params))
+        self.table.append(**new_rows(dets, new, ids, t, pos_var, index, self.params))
         self.identity.started(self.table, np.arange(first, first + n), dets.subset(new), t)
 
     def _lifecycle(self, t: float) -> None:
@@ -439,9 +426,7 @@ class Tracker:
         self._reattach(t, np.flatnonzero(tb.confirmed & ~was))
         self._merge(t)
         gone = self.deleter.delete(tb, t)
-        self.lost.forget_before(t - REACQUIRE_S)
         if gone.any():
-            self.lost.add(tb.x[gone & tb.confirmed, 0:2], t)
             self.identity.ended(tb, np.flatnonzero(gone), t)
             self.counters["tracks_deleted"] += int(gone.sum())
             tb.keep(~gone)
