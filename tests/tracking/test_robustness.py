@@ -117,3 +117,21 @@ def test_one_person_seen_by_two_offset_noisy_sensors_is_one_track() -> None:
     near_person, _ = _run(tracker, 30.0, 3, person=True, decoy=False)
     ids = set().union(*near_person)
     assert len(ids) == 1, ids  # outliers may start tentative tracks, never confirmed ones
+
+
+def test_published_confidence_reflects_the_evidence() -> None:
+    """A person seen in every frame is published more confidently than one seen rarely."""
+    tracker = build_tracker(TrackerConfig(confirm_min_displacement_m=0.0))
+    rng = np.random.default_rng(5)
+    confidence: dict[int, list[float]] = {1: [], 2: []}
+    for k in range(int(20 / FRAME)):
+        t = k * FRAME
+        dets = [_detection(np.array([1.0 + 0.3 * t, 1.0]), 0.9)]
+        if k < 60 or rng.random() < 0.35:  # the second person, seen in a third of frames
+            dets.append(_detection(np.array([1.0 + 0.3 * t, 4.0]), 0.9))
+        out = tracker.step(DetectionBatch("a", k, T0 + t, "world", tuple(dets)))
+        if t > 10:
+            for tr in out.tracks:
+                confidence[1 if tr.y < 2.5 else 2].append(tr.confidence)
+    assert np.mean(confidence[1]) > 0.8
+    assert np.mean(confidence[2]) < 0.6 * np.mean(confidence[1])
