@@ -411,7 +411,9 @@ class Tracker:
         ids = np.arange(self.max_id + 1, self.max_id + 1 + n, dtype=np.int64)
         self.max_id += n
         self.counters["tracks_started"] += n
+        # a new track is as uncertain as its sensor really is (its learned noise)
         pos_var = self.measurement.position_noise(dets.distance[new])[:, 0, 0]
+        pos_var = pos_var * self.sensors.noise_scale(dets.sensor_id, dets.distance[new])
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
         first = len(self.table)
         self.table.append(**new_rows(dets, new, ids, t, pos_var, index, self.params))
