@@ -1,7 +1,8 @@
 """Appearance signature of a detection: a quantised hue histogram of its colour points.
 
-Seed 000 (Eq. 8) compares children by the correlation of hue histograms in HSV space.
-Each detection carries such a histogram: hue in ``bins`` equal sectors, counting only
+The childcare tracking paper ("Simultaneous children recognition and tracking ... using
+Kinect sensors", Eq. 8) compares children by the correlation of hue histograms in HSV
+space. Each detection carries such a histogram: hue in ``bins`` equal sectors, counting only
 pixels saturated and bright enough for hue to mean something, normalised so that the
 bins sum to about 255 and quantised to integers 0-255 (an all-zero signature means no
 usable colour, e.g. a grey or dark blob, or no colour image).

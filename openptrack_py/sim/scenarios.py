@@ -1,4 +1,4 @@
-"""Named, seeded scenarios that mirror the sequences of the seed papers.
+"""Named, seeded scenarios after the OpenPTrack paper's sequences and the childcare class.
 
 ==============  ==========================================================================
 ``crowd``       7 adults walking to random points 1-9 m from the first sensor, pausing;
