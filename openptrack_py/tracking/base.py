@@ -102,8 +102,14 @@ class Initiator(Protocol):
         ``d2 (n_tracks, n_detections)``: squared Mahalanobis distances of every pair.
         """
 
-    def confirm(self, table: TrackTable, t: float) -> np.ndarray:
-        """Confirmation flag of every track after the step at ``t``."""
+    def confirm(
+        self, table: TrackTable, t: float, continuing: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Confirmation flag of every track after the step at ``t``.
+
+        ``continuing`` marks tracks that continue a lost confirmed track (see
+        :meth:`Merger.continuations`): evidence of a person already gathered.
+        """
 
 
 class Deleter(Protocol):
@@ -148,6 +154,9 @@ class Merger(Protocol):
         self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
     ) -> list[tuple[int, int]]:
         """Pairs ``(lost_row, new_row)``: a track confirmed now is a lost one seen again."""
+
+    def continuations(self, table: TrackTable, t: float, lost_after_s: float) -> np.ndarray:
+        """Mask of tentative tracks that may be a lost, walking person seen again."""
 
 
 @runtime_checkable

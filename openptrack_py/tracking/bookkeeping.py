@@ -15,7 +15,14 @@ import numpy as np
 
 from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.sensor_model import SensorUpdates
-from openptrack_py.tracking.state import HISTORY, HISTORY_SPACING_S, DetectionArrays, TrackTable
+from openptrack_py.tracking.state import (
+    HISTORY,
+    HISTORY_SPACING_S,
+    SENSOR_SLOTS,
+    DetectionArrays,
+    TrackTable,
+    sensor_slot,
+)
 
 RECENT_WEIGHT = 0.3
 """Weight of a new detection in a track's recent detected position (``recent_xy``)."""
@@ -110,17 +117,44 @@ def new_rows(
         "birth_n": np.ones(n, dtype=np.int64),
         "last_sensor": np.full(n, sensor_index),
         "multi_t": np.full(n, -np.inf),
+        "evidence": np.full(n, params.evidence_per_hit),
+        "sensor_hit_t": _first_hit(n, sensor_index, t),
     }
 
 
 def update_support(
-    tb: TrackTable, hit_rows: np.ndarray, expected: np.ndarray, rate: float
+    tb: TrackTable,
+    hit_rows: np.ndarray,
+    expected: np.ndarray,
+    sensor_index: int,
+    t: float,
+    params: TrackerParams,
 ) -> None:
-    """Tracks ``expected`` to be seen (and those hit) move their support toward hit/miss."""
+    """Tracks ``expected`` to be seen (and those hit) gain support and evidence if hit.
+
+    Support moves toward hit/miss. Evidence adds the log-likelihood ratio of a hit or of
+    a miss (``params.evidence_per_hit`` / ``evidence_per_miss``) for every frame of a
+    sensor that has detected the track within ``params.evidence_memory_s``, whatever
+    the coverage map says yet: a sensor whose view of the place has been blocked for a
+    while (a wall, a cabinet, other people) or cut by the edge of its image says nothing.
+    """
     hit = np.zeros(len(tb), dtype=bool)
     hit[hit_rows] = True
     expected = expected | hit
-    tb.support[expected] += rate * (hit[expected] - tb.support[expected])
+    tb.support[expected] += params.support_rate * (hit[expected] - tb.support[expected])
+    slot = sensor_slot(sensor_index)
+    counted = hit | (t - tb.sensor_hit_t[:, slot] <= params.evidence_memory_s)
+    tb.evidence[counted] += np.where(
+        hit[counted], params.evidence_per_hit, params.evidence_per_miss
+    )
+    tb.sensor_hit_t[hit, slot] = t
+
+
+def _first_hit(n: int, sensor_index: int, t: float) -> np.ndarray:
+    """``sensor_hit_t`` rows of ``n`` tracks first detected by one sensor at ``t``."""
+    rows = np.full((n, SENSOR_SLOTS), -np.inf)
+    rows[:, sensor_slot(sensor_index)] = t
+    return rows
 
 
 def damp_unseen(tb: TrackTable, t: float, dt: float, params: TrackerParams) -> None:
@@ -156,6 +190,8 @@ def fold_into(tb: TrackTable, keep: np.ndarray, drop: np.ndarray) -> None:
     tb.first_seen[keep] = np.minimum(tb.first_seen[keep], tb.first_seen[drop])
     tb.last_seen[keep] = np.maximum(tb.last_seen[keep], tb.last_seen[drop])
     tb.hits[keep] += tb.hits[drop]
+    tb.evidence[keep] = np.maximum(tb.evidence[keep], tb.evidence[drop])
+    tb.sensor_hit_t[keep] = np.maximum(tb.sensor_hit_t[keep], tb.sensor_hit_t[drop])
     tb.support[keep] = np.maximum(tb.support[keep], tb.support[drop])
     tb.confidence[keep] = np.maximum(tb.confidence[keep], tb.confidence[drop])
     _remove(tb, drop)

@@ -7,6 +7,8 @@ arguments, so tests and other front ends can compose them directly.
 
 from __future__ import annotations
 
+import math
+
 from scipy.stats import chi2
 
 from openptrack_py.config import TrackerConfig
@@ -43,6 +45,13 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             min_support=cfg.confirm_min_support,
             min_displacement_m=cfg.confirm_min_displacement_m,
             min_separation_m=cfg.birth_min_separation_m,
+            still_min_age_s=cfg.confirm_still_min_age_s,
+            still_clearance_m=cfg.confirm_still_clearance_m,
+            still_evidence=(
+                math.log(1.0 / cfg.confirm_still_error)
+                if cfg.confirm_still_error > 0
+                else math.inf
+            ),
         ),
         deleter=TimeDeleter(cfg.sec_before_fake, cfg.sec_before_old, cfg.tentative_timeout_s),
         sensors=OnlineSensorModel(
@@ -74,5 +83,11 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             keepalive_min_support=cfg.keepalive_min_support,
             unseen_stop_s=cfg.unseen_stop_s,
             shared_noise_factor=cfg.shared_noise_factor,
+            evidence_per_hit=math.log(
+                cfg.confirm_still_person_rate / cfg.confirm_still_clutter_rate
+            ),
+            evidence_per_miss=math.log(
+                (1.0 - cfg.confirm_still_person_rate) / (1.0 - cfg.confirm_still_clutter_rate)
+            ),
         ),
     )

@@ -15,8 +15,25 @@ Confirmation asks for *consistent evidence*, not a count of anything:
   reports now and then is not a person;
 * **displacement**: the track has moved at least ``min_displacement_m`` from where it
   started. People walk; a coat rack, a poster board or a fan that the detector takes
-  for a person recurs at one place and never does, and is never confirmed. (A person
-  who stands still from the moment the tracker starts is confirmed once they move.)
+  for a person recurs at one place and never does, and is never confirmed;
+* **or, for a track that has not moved, steadiness**: a person standing in view is
+  detected in nearly every frame of the sensors that cover the place, while what a
+  detector mistakes for a person it mistakes now and then (a view angle, a shadow, a
+  fan turning). Wald's sequential probability ratio test decides between the two: each
+  frame that should have seen the track adds ``ln(p1 / p0)`` to its evidence when it
+  detected it and ``ln((1 - p1) / (1 - p0))`` when it did not (``p1`` the detection
+  rate of a person in view, ``p0`` the highest of a static false positive), and the
+  track is confirmed when the evidence reaches ``ln(1 / alpha)``: a static false
+  positive detected at rate ``p0`` is confirmed with probability at most ``alpha``,
+  a steadily detected person within a second or so. (An object a detector takes for a
+  person as often as a person is a person to any tracker until it never moves.)
+  Transient false positives are detected in every frame while they last (a fraction
+  of a second, in one sensor's view), so steadiness alone also needs ``still_min_age_s``
+  unless two sensors have detected the track, and a track beside a confirmed one (that
+  person seen otherwise, more likely than a second one standing motionless) must move.
+  A track that continues a lost person who
+  was walking (they reappear from behind a
+  pillar within walking reach) needs neither.
 
 Deletion: a tentative track goes ``sec_before_fake`` after its first detection or
 ``tentative_timeout_s`` without a confident detection; a confirmed track goes
@@ -56,6 +73,19 @@ class ConfidenceInitiator:
         A detection closer than this to a confirmed track never starts a track: two
         people's centres are never that close (the detector merges them first), so it
         is that person, seen by another sensor or off-centre.
+    still_evidence : float
+        Evidence (``TrackTable.evidence``) that confirms a track which has not moved
+        ``min_displacement_m`` (infinite: only a track that moved is confirmed).
+    still_min_age_s : float
+        Least age of a track confirmed by steadiness unless two sensors have detected
+        it: transient false positives (a reflection, a door swinging, a chair being
+        moved) last a fraction of a second, are detected in every frame while they do,
+        and are an artefact of one sensor's view.
+    still_clearance_m : float
+        A track closer than this to a confirmed one is not confirmed by steadiness: a
+        steady blob beside a tracked person is more likely that person seen otherwise (a
+        second sensor's offset view, a raised arm, a bag) than a second person standing
+        motionless.
     """
 
     min_confidence: float
@@ -65,6 +95,9 @@ class ConfidenceInitiator:
     min_support: float = 0.0
     min_displacement_m: float = 0.0
     min_separation_m: float = 0.0
+    still_evidence: float = float("inf")
+    still_min_age_s: float = 0.0
+    still_clearance_m: float = 0.0
 
     def initiate(
         self,
@@ -89,8 +122,14 @@ class ConfidenceInitiator:
         confident = dets.confidence >= self.min_confidence
         return np.flatnonzero(~assigned & ~explained & confident)
 
-    def confirm(self, table: TrackTable, t: float) -> np.ndarray:
-        """Confirmation flags after the step at ``t``."""
+    def confirm(
+        self, table: TrackTable, t: float, continuing: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Confirmation flags after the step at ``t``.
+
+        Tracks marked ``continuing`` (a lost person who was walking, seen again) need
+        not have moved.
+        """
         ready = table.hits >= self.detections_to_validate
         if self.min_age_s > 0:
             ready &= t - table.first_seen >= self.min_age_s
@@ -98,9 +137,26 @@ class ConfidenceInitiator:
             ready &= table.support >= self.min_support
         if self.min_displacement_m > 0:
             # measured on the detections, not the filter (which drifts while unseen)
-            moved = np.hypot(*(table.recent_xy - table.birth_xy).T)
-            ready &= moved >= self.min_displacement_m
+            moved = np.hypot(*(table.recent_xy - table.birth_xy).T) >= self.min_displacement_m
+            two_sensors = np.isfinite(table.sensor_hit_t).sum(axis=1) >= 2
+            lasting = (t - table.first_seen >= self.still_min_age_s) | two_sensors
+            steady = (table.evidence >= self.still_evidence) & lasting
+            if self.still_clearance_m > 0 and steady.any() and table.confirmed.any():
+                steady &= _clearance(table) >= self.still_clearance_m
+            moved |= steady
+            if continuing is not None:
+                moved |= continuing
+            ready &= moved
         return table.confirmed | ready
+
+
+def _clearance(table: TrackTable) -> np.ndarray:
+    """Each track's distance to the nearest confirmed track (other than itself)."""
+    xy = table.x[:, 0:2]
+    conf = np.flatnonzero(table.confirmed)
+    gap = np.hypot(xy[:, None, 0] - xy[None, conf, 0], xy[:, None, 1] - xy[None, conf, 1])
+    gap[conf, np.arange(len(conf))] = np.inf
+    return gap.min(axis=1)
 
 
 @dataclass(frozen=True)

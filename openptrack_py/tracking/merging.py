@@ -37,6 +37,10 @@ class TrackMerger:
         A lost track may be the person of a new track that started within
         ``distance_m + reattach_speed_mps * elapsed`` of where it was last seen (0
         disables re-attachment).
+    walking_m : float
+        A lost track was walking if its estimate moved this far in its last second of
+        sightings; only a walking person's lost track vouches for a new one
+        (:meth:`continuations`).
     """
 
     def __init__(
@@ -47,6 +51,7 @@ class TrackMerger:
         distinct_s: float = 5.0,
         fresh_s: float = 0.3,
         reattach_speed_mps: float = 1.5,
+        walking_m: float = 0.3,
     ) -> None:
         self.distance_m = distance_m
         self.after_s = after_s
@@ -54,6 +59,7 @@ class TrackMerger:
         self.distinct_s = distinct_s
         self.fresh_s = fresh_s
         self.reattach_speed_mps = reattach_speed_mps
+        self.walking_m = walking_m
         self._close_since: dict[tuple[int, int], float] = {}
         self._last_close: dict[tuple[int, int], float] = {}
         self._distinct: dict[tuple[int, int], float] = {}
@@ -93,18 +99,10 @@ class TrackMerger:
         lost_after_s : float
             A confirmed track unseen this long is lost.
         """
-        if self.reattach_speed_mps <= 0 or not len(new):
+        lost = self._lost(table, t, lost_after_s)
+        if self.reattach_speed_mps <= 0 or not len(new) or not len(lost):
             return []
-        lost = np.flatnonzero(table.confirmed & (t - table.last_seen > lost_after_s))
-        if not len(lost):
-            return []
-        gap = np.hypot(
-            table.birth_xy[new, None, 0] - table.recent_xy[None, lost, 0],
-            table.birth_xy[new, None, 1] - table.recent_xy[None, lost, 1],
-        )
-        elapsed = table.first_seen[new, None] - table.last_seen[None, lost]
-        reach = self.distance_m + self.reattach_speed_mps * np.maximum(elapsed, 0.0)
-        ok = (elapsed > 0) & (gap <= reach)
+        ok, gap = self._within_reach(table, new, lost)
         out: list[tuple[int, int]] = []
         used: set[int] = set()
         for i, j in sorted(zip(*np.nonzero(ok), strict=True), key=lambda ij: gap[ij]):
@@ -114,6 +112,53 @@ class TrackMerger:
             out.append((a, b))
             used.update((a, b))
         return out
+
+    def continuations(self, table: TrackTable, t: float, lost_after_s: float) -> np.ndarray:
+        """Mask of tentative tracks that may be a lost person who was walking, seen again.
+
+        A person who walks behind a pillar reappears further along, within reach of
+        where their track was lost: their new track need not prove again that it moves.
+        Only a track that was walking when it was lost vouches (a track left on a static
+        false positive was not), and only for a new track started after it was lost.
+        """
+        out = np.zeros(len(table), dtype=bool)
+        if self.reattach_speed_mps <= 0:
+            return out
+        new = np.flatnonzero(~table.confirmed)
+        lost = self._lost(table, t, lost_after_s)
+        if not len(new) or not len(lost):
+            return out
+        lost = lost[self._walking(table, lost)]
+        if len(lost):
+            ok, _ = self._within_reach(table, new, lost)
+            out[new] = ok.any(axis=1)
+        return out
+
+    @staticmethod
+    def _lost(table: TrackTable, t: float, lost_after_s: float) -> np.ndarray:
+        return np.flatnonzero(table.confirmed & (t - table.last_seen > lost_after_s))
+
+    def _within_reach(
+        self, table: TrackTable, new: np.ndarray, lost: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(len(new), len(lost))``: started after the loss, within walking reach; gaps."""
+        gap = np.hypot(
+            table.birth_xy[new, None, 0] - table.recent_xy[None, lost, 0],
+            table.birth_xy[new, None, 1] - table.recent_xy[None, lost, 1],
+        )
+        elapsed = table.first_seen[new, None] - table.last_seen[None, lost]
+        reach = self.distance_m + self.reattach_speed_mps * np.maximum(elapsed, 0.0)
+        return (elapsed > 0) & (gap <= reach), gap
+
+    def _walking(self, table: TrackTable, rows: np.ndarray) -> np.ndarray:
+        """Whether each track's estimate moved ``walking_m`` in its last second seen."""
+        ht, hxy = table.hist_t[rows], table.hist_xy[rows]
+        recent = (ht >= table.last_seen[rows, None] - 1.0) & (ht <= table.last_seen[rows, None])
+        first = np.argmin(np.where(recent, ht, np.inf), axis=1)
+        last = np.argmax(np.where(recent, ht, -np.inf), axis=1)
+        idx = np.arange(len(rows))
+        moved = np.hypot(*(hxy[idx, last] - hxy[idx, first]).T)
+        return recent.any(axis=1) & (moved >= self.walking_m)
 
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
         """Pairs ``(keep_row, drop_row)`` to merge now; each row in at most one pair."""
@@ -181,3 +226,7 @@ class NoMerging:
     ) -> list[tuple[int, int]]:
         """No pairs."""
         return []
+
+    def continuations(self, table: TrackTable, t: float, lost_after_s: float) -> np.ndarray:
+        """None."""
+        return np.zeros(len(table), dtype=bool)

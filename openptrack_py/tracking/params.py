@@ -61,6 +61,12 @@ class TrackerParams:
     shared_noise_factor : float
         Factor on the noise of a detection that two confirmed tracks could both have
         produced (two people in one blob), so it drags its track less.
+    evidence_per_hit, evidence_per_miss : float
+        What a detection, and a frame that should have seen the track but did not, add
+        to its evidence (``TrackTable.evidence``).
+    evidence_memory_s : float
+        A sensor's frames count toward a track's evidence while it has detected the
+        track within this long.
     """
 
     detector_weight: float = -1.0
@@ -82,6 +88,9 @@ class TrackerParams:
     keepalive_min_support: float = 0.0
     unseen_stop_s: float = 0.0
     shared_noise_factor: float = 1.0
+    evidence_per_hit: float = 0.0
+    evidence_per_miss: float = 0.0
+    evidence_memory_s: float = 0.5
 
     def __post_init__(self) -> None:
         if self.late_policy not in ("replay", "drop"):

@@ -18,6 +18,13 @@ HISTORY = 48
 """Past positions kept per track (for the velocity measurement)."""
 HISTORY_SPACING_S = 0.04
 """Least time between two remembered positions of a track."""
+SENSOR_SLOTS = 16
+"""Sensors whose last detection of each track is remembered one by one."""
+
+
+def sensor_slot(sensor_index: int) -> int:
+    """The column of ``TrackTable.sensor_hit_t`` of a sensor (by index)."""
+    return min(sensor_index, SENSOR_SLOTS - 1)
 
 
 @dataclass(frozen=True)
@@ -120,6 +127,13 @@ class TrackTable:
         Index of the sensor of the track's last detection.
     multi_t : ndarray
         Last time the track's detections came from two different sensors in a row.
+    evidence : ndarray
+        Log-likelihood ratio of "a person" against "a static false positive" from the
+        track's detections and misses in the frames of the sensors that should see it
+        (a sequential probability ratio test; see ``lifecycle``).
+    sensor_hit_t : ndarray
+        ``(n, SENSOR_SLOTS)`` last time each sensor (by index; later sensors share the
+        last slot) detected the track; ``-inf`` for never.
     """
 
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
@@ -140,11 +154,13 @@ class TrackTable:
     recent_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     last_sensor: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     multi_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    evidence: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    sensor_hit_t: np.ndarray = field(default_factory=lambda: np.zeros((0, SENSOR_SLOTS)))
 
     COLUMNS = (
         "ids", "x", "cov", "z", "height", "confidence", "first_seen", "last_seen", "hits",
         "confirmed", "hist_t", "hist_xy", "support", "birth_xy", "birth_n", "recent_xy",
-        "last_sensor", "multi_t",
+        "last_sensor", "multi_t", "evidence", "sensor_hit_t",
     )  # fmt: skip
 
     def __len__(self) -> int:

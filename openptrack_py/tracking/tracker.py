@@ -311,7 +311,7 @@ class Tracker:
         tb = self.table
         assigned = np.zeros(len(dets), dtype=bool)
         if not len(tb) or not len(dets):
-            self._update_support(np.zeros(0, dtype=int), dets.sensor_id)
+            self._update_support(np.zeros(0, dtype=int), dets.sensor_id, t)
             self.sensors.observe_frame(dets.sensor_id, len(dets))
             return assigned, np.zeros((len(tb), len(dets)))
         proj, z, r, d2, logdet = self._pair_terms(dets, t)
@@ -334,7 +334,7 @@ class Tracker:
             cost = cost + extra
         pairs = self._assign_by_stage(cost, allowed)
         if not pairs:
-            self._update_support(np.zeros(0, dtype=int), dets.sensor_id)
+            self._update_support(np.zeros(0, dtype=int), dets.sensor_id, t)
             self.sensors.observe_frame(dets.sensor_id, len(dets))
             return assigned, d2
         rows = np.array([p[0] for p in pairs])
@@ -362,7 +362,7 @@ class Tracker:
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used
         )
         prior_support = tb.support[rows].copy()
-        self._update_support(rows, dets.sensor_id)
+        self._update_support(rows, dets.sensor_id, t)
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
         self.merger.observe(tb, rows, t)
@@ -424,7 +424,8 @@ class Tracker:
         if not len(tb):
             return
         was = tb.confirmed
-        tb.confirmed = self.initiator.confirm(tb, t)
+        continuing = self.merger.continuations(tb, t, self.params.visibility_timeout_s)
+        tb.confirmed = self.initiator.confirm(tb, t, continuing)
         self._reattach(t, np.flatnonzero(tb.confirmed & ~was))
         self._merge(t)
         gone = self.deleter.delete(tb, t)
@@ -433,11 +434,12 @@ class Tracker:
             self.counters["tracks_deleted"] += int(gone.sum())
             tb.keep(~gone)
 
-    def _update_support(self, hit_rows: np.ndarray, sensor_id: str) -> None:
+    def _update_support(self, hit_rows: np.ndarray, sensor_id: str, t: float) -> None:
         """Tracks this sensor should have seen gain support if detected, lose it if not."""
         if len(self.table):
             expected = self.sensors.covers(sensor_id, self.table.x[:, 0:2])
-            update_support(self.table, hit_rows, expected, self.params.support_rate)
+            index = self._sensor_index.setdefault(sensor_id, len(self._sensor_index))
+            update_support(self.table, hit_rows, expected, index, t, self.params)
 
     def _merge(self, t: float) -> None:
         """Fold each track that follows the same person as an older one into it."""

@@ -89,7 +89,9 @@ class EveryOrphanInitiator:
         in_any_gate = (d2 <= ThresholdGate.threshold).any(axis=0) if len(d2) else False
         return np.flatnonzero(~assigned & ~in_any_gate)
 
-    def confirm(self, table: TrackTable, t: float) -> np.ndarray:
+    def confirm(
+        self, table: TrackTable, t: float, continuing: np.ndarray | None = None
+    ) -> np.ndarray:
         return table.confirmed | (table.hits >= 2)
 
 
@@ -135,6 +137,9 @@ class NeverMerge:
         self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
     ) -> list[tuple[int, int]]:
         return []
+
+    def continuations(self, table: TrackTable, t: float, lost_after_s: float) -> np.ndarray:
+        return np.zeros(len(table), dtype=bool)
 
 
 @dataclass
