@@ -46,6 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from openptrack_py.tracking.neighbours import nearest_distance
 from openptrack_py.tracking.state import DetectionArrays, TrackTable
 
 
@@ -114,11 +115,8 @@ class ConfidenceInitiator:
         """
         explained = (d2 <= self.birth_gate).any(axis=0) if len(d2) else np.zeros(len(dets), bool)
         if self.min_separation_m > 0 and table is not None and table.confirmed.any():
-            xy = table.x[table.confirmed, 0:2]
-            gap = np.hypot(
-                dets.xy[:, None, 0] - xy[None, :, 0], dets.xy[:, None, 1] - xy[None, :, 1]
-            )
-            explained |= (gap < self.min_separation_m).any(axis=1)
+            near = nearest_distance(dets.xy, table.x[table.confirmed, 0:2])
+            explained |= near < self.min_separation_m
         confident = dets.confidence >= self.min_confidence
         return np.flatnonzero(~assigned & ~explained & confident)
 
@@ -141,22 +139,16 @@ class ConfidenceInitiator:
             two_sensors = np.isfinite(table.sensor_hit_t).sum(axis=1) >= 2
             lasting = (t - table.first_seen >= self.still_min_age_s) | two_sensors
             steady = (table.evidence >= self.still_evidence) & lasting
+            steady &= ~table.confirmed
             if self.still_clearance_m > 0 and steady.any() and table.confirmed.any():
-                steady &= _clearance(table) >= self.still_clearance_m
+                rows = np.flatnonzero(steady)
+                near = nearest_distance(table.x[rows, 0:2], table.x[table.confirmed, 0:2])
+                steady[rows] = near >= self.still_clearance_m
             moved |= steady
             if continuing is not None:
                 moved |= continuing
             ready &= moved
         return table.confirmed | ready
-
-
-def _clearance(table: TrackTable) -> np.ndarray:
-    """Each track's distance to the nearest confirmed track (other than itself)."""
-    xy = table.x[:, 0:2]
-    conf = np.flatnonzero(table.confirmed)
-    gap = np.hypot(xy[:, None, 0] - xy[None, conf, 0], xy[:, None, 1] - xy[None, conf, 1])
-    gap[conf, np.arange(len(conf))] = np.inf
-    return gap.min(axis=1)
 
 
 @dataclass(frozen=True)

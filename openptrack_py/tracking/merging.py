@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from openptrack_py.tracking.neighbours import close_pairs
 from openptrack_py.tracking.state import TrackTable
 
 
@@ -76,12 +77,9 @@ class TrackMerger:
         """Tracks ``rows`` were detected in one sensor frame: close pairs are distinct."""
         if len(rows) < 2 or self.after_s <= 0:
             return
-        xy = table.x[rows, 0:2]
-        gap = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
-        reach = 2.0 * self.distance_m
-        for i, j in zip(*np.nonzero(np.triu(gap <= reach, k=1)), strict=True):
-            a, b = sorted((int(table.ids[rows[i]]), int(table.ids[rows[j]])))
-            self._distinct[(a, b)] = t
+        ii, jj = close_pairs(table.x[rows, 0:2], 2.0 * self.distance_m)
+        for a, b in zip(table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist(), strict=True):
+            self._distinct[(a, b) if a < b else (b, a)] = t
 
     def reattach(
         self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
@@ -199,15 +197,16 @@ class TrackMerger:
         if len(rows) < 2:
             return {}
         x = table.x[rows]
-        gap = np.hypot(x[:, None, 0] - x[None, :, 0], x[:, None, 1] - x[None, :, 1])
-        dv = np.hypot(x[:, None, 2] - x[None, :, 2], x[:, None, 3] - x[None, :, 3])
-        near = np.triu((gap <= self.distance_m) & (dv <= self.max_speed_difference_mps), k=1)
+        ii, jj = close_pairs(x[:, 0:2], self.distance_m)
+        dv = np.hypot(x[ii, 2] - x[jj, 2], x[ii, 3] - x[jj, 3])
+        keep = dv <= self.max_speed_difference_mps
+        ii, jj = ii[keep], jj[keep]
+        gap = np.hypot(x[ii, 0] - x[jj, 0], x[ii, 1] - x[jj, 1])
         out = {}
-        for i, j in zip(*np.nonzero(near), strict=True):
+        for i, j, g in zip(ii.tolist(), jj.tolist(), gap.tolist(), strict=True):
             ra, rb = int(rows[i]), int(rows[j])
             a, b = int(table.ids[ra]), int(table.ids[rb])
-            key = (a, b) if a < b else (b, a)
-            out[key] = (ra, rb, float(gap[i, j]))
+            out[(a, b) if a < b else (b, a)] = (ra, rb, g)
         return out
 
 

@@ -48,20 +48,17 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from openptrack_py.tracking.alignment import RigidAlignment, rotation
+from openptrack_py.tracking.coverage import COVERAGE_CELL_M, Coverage
 from openptrack_py.tracking.state import DetectionArrays
 
-COVERAGE_CELL_M = 0.5
-"""Side of a coverage cell, metres."""
 NOISE_BANDS_M = np.array([0.0, 3.0, 5.0, 7.0, np.inf])
 """Edges of the distance bands in which a sensor's noise scale is estimated."""
 NOISE_BAND_CENTRES_M = np.array([2.0, 4.0, 6.0, 8.0])
 """Where each band's scale applies fully (linear in between, constant outside)."""
-COVERAGE_MIN_DETECTIONS = 5
 CLUTTER_RATE = 0.01
 """Weight of one frame in a sensor's average of unexplained detections."""
 MIN_CLUTTER_DENSITY = 1e-3
 """Least clutter density assumed, per frame and square metre."""
-"""Detections a sensor must have reported in a cell before it is known to see it."""
 
 
 @dataclass(frozen=True)
@@ -209,24 +206,23 @@ class OnlineSensorModel:
         self.refit_every = refit_every
         self.min_samples = min_samples
         self._sensors: dict[str, _SensorState] = {}
-        self._coverage: dict[str, dict[tuple[int, int], int]] = {}
-        self._coverage_seq: dict[str, set[int]] = {}
+        self._coverage = Coverage()
 
     # ------------------------------------------------------------------ state
 
-    def snapshot(self) -> tuple[dict[str, _SensorState], object]:
+    def snapshot(self) -> tuple[dict[str, _SensorState], Coverage]:
         """The learned noise and alignment of every sensor, and the coverage.
 
         The coverage is shared, not copied: each batch adds to it once, whatever the
         order, so a replay has nothing to undo.
         """
         states = {name: st.copy() for name, st in self._sensors.items()}
-        return states, (self._coverage, self._coverage_seq)
+        return states, self._coverage
 
-    def restore(self, state: tuple[dict[str, _SensorState], object]) -> None:
+    def restore(self, state: tuple[dict[str, _SensorState], Coverage]) -> None:
         """Return to a snapshot."""
         self._sensors = {name: st.copy() for name, st in state[0].items()}
-        self._coverage, self._coverage_seq = state[1]  # type: ignore[misc]
+        self._coverage = state[1]  # type: ignore[assignment]
 
     # ------------------------------------------------------------------ queries
 
@@ -270,7 +266,7 @@ class OnlineSensorModel:
 
     def correct(self, dets: DetectionArrays) -> DetectionArrays:
         """The detections with their sensor's misalignment removed; marks its coverage."""
-        self._mark_coverage(dets)
+        self._coverage.mark(dets.sensor_id, dets.seq, dets.xy)
         st = self._sensors.get(dets.sensor_id)
         if st is None or st.align.weight <= 0 or not len(dets):
             return dets
@@ -279,10 +275,9 @@ class OnlineSensorModel:
     def clutter_density(self, sensor_id: str) -> float:
         """Detections per frame and square metre that no track explains, for a sensor."""
         st = self._sensors.get(sensor_id)
-        cells = self._coverage.get(sensor_id)
-        if st is None or not cells:
+        if st is None or not self._coverage.known(sensor_id):
             return MIN_CLUTTER_DENSITY
-        covered = sum(1 for n in cells.values() if n >= COVERAGE_MIN_DETECTIONS)
+        covered = self._coverage.covered_cells(sensor_id)
         area = max(covered, 1) * COVERAGE_CELL_M**2
         return max(st.unexplained_per_frame / area, MIN_CLUTTER_DENSITY)
 
@@ -295,28 +290,7 @@ class OnlineSensorModel:
 
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` where this sensor has reported people."""
-        cells = self._coverage.get(sensor_id)
-        if not cells or not len(xy):
-            return np.zeros(len(xy), dtype=bool)
-        keys = np.floor(xy / COVERAGE_CELL_M).astype(int).tolist()
-        least = COVERAGE_MIN_DETECTIONS
-        return np.array([cells.get((k[0], k[1]), 0) >= least for k in keys], dtype=bool)
-
-    def _mark_coverage(self, dets: DetectionArrays) -> None:
-        """Count the batch's detections in their cells, once per batch."""
-        if not len(dets):
-            return
-        seen = self._coverage_seq.setdefault(dets.sensor_id, set())
-        if dets.seq >= 0:
-            if dets.seq in seen:
-                return  # a replay: counted already
-            seen.add(dets.seq)
-            if len(seen) > 4096:  # only the last moments can be replayed
-                floor = max(seen) - 2048
-                seen.difference_update([q for q in seen if q < floor])
-        cells = self._coverage.setdefault(dets.sensor_id, {})
-        for key in map(tuple, np.floor(dets.xy / COVERAGE_CELL_M).astype(int).tolist()):
-            cells[key] = cells.get(key, 0) + 1
+        return self._coverage.covers(sensor_id, xy)
 
     # ----------------------------------------------------------------- learning
 
