@@ -107,6 +107,7 @@ class _SensorState:
     samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
     head: int = 0
     since_fit: int = 0
+    batches_since_fit: int = 0
 
     def copy(self) -> _SensorState:
         return replace(
@@ -169,9 +170,11 @@ class OnlineSensorModel:
     window : int
         Gated distances kept per sensor for the noise scale.
     refit_every : int
-        New samples between two noise-scale fits (and at least a hundred per sensor
-        for each fit of the distance bands, so a crowded room does not refit at every
-        batch).
+        New samples between two noise-scale fits (at least a third of the window).
+    refit_min_batches : int
+        Batches of the sensor between two noise-scale fits, so a crowded room (a
+        hundred samples in one batch) does not refit at every batch: a sensor's noise
+        changes over seconds, not frames.
     min_samples : int
         Samples needed before the first fit.
     """
@@ -188,6 +191,7 @@ class OnlineSensorModel:
         align_every: int = 30,
         window: int = 300,
         refit_every: int = 30,
+        refit_min_batches: int = 10,
         min_samples: int = 60,
     ) -> None:
         if not 0 < scale_bounds[0] <= 1.0 <= scale_bounds[1]:
@@ -204,6 +208,7 @@ class OnlineSensorModel:
         self.align_every = align_every
         self.window = window
         self.refit_every = refit_every
+        self.refit_min_batches = refit_min_batches
         self.min_samples = min_samples
         self._sensors: dict[str, _SensorState] = {}
         self._coverage = Coverage()
@@ -327,9 +332,14 @@ class OnlineSensorModel:
             st.samples[idx] = rows
             st.head = int((st.head + len(rows)) % self.window)
         st.since_fit += len(rows)
+        st.batches_since_fit += 1
         due = max(self.refit_every, len(st.samples) // 3)
-        if len(st.samples) >= self.min_samples and st.since_fit >= due:
-            st.since_fit = 0
+        if (
+            len(st.samples) >= self.min_samples
+            and st.since_fit >= due
+            and st.batches_since_fit >= self.refit_min_batches
+        ):
+            st.since_fit = st.batches_since_fit = 0
             st.scales = self._fit_bands(st.samples)
 
     def _fit_bands(self, samples: np.ndarray) -> np.ndarray:
