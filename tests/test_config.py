@@ -43,7 +43,7 @@ def _problem_lines(message: str) -> list[str]:
     """The per-problem lines of a validation error (after the 'invalid configuration' line)."""
     first, *rest = message.splitlines()
     assert first.endswith(": invalid configuration"), message
-    return [line.strip() for line in rest]
+    return [line.strip() for line in rest if not line.strip().startswith("(given by --set")]
 
 
 # -------------------------------------------------------------------- shipped files
@@ -207,6 +207,51 @@ def test_bad_zenoh_endpoint(override: str, where: str, received: str) -> None:
     assert line.startswith(f"{where}: must be a Zenoh endpoint '<protocol>/<address>'"), line
     assert "tcp, udp, tls, quic, ws, unixsock-stream" in line
     assert line.endswith(f"(received {received})"), line
+
+
+@pytest.mark.parametrize(
+    "override, problem",
+    [
+        ("zenoh.hub=tcp/127.0.0.1:99999", "port must be in 0-65535, got 99999"),
+        ("zenoh.hub=tcp/127.0.0.1", "expected host:port"),
+        ("zenoh.hub=tcp/host:port", "the port must be a number"),
+        ("zenoh.hub=tcp/300.1.2.3:7447", "300.1.2.3 is not an IPv4 address"),
+        ("zenoh.hub=tcp/[::zz]:7447", "[::zz] is not an IPv6 address"),
+        ("zenoh.connect=[tcp/no_such host:7447]", "'no_such host' is not a valid host name"),
+        ("zenoh.listen=[tls/-bad-.example:7447]", "'-bad-.example' is not a valid host name"),
+    ],
+    ids=["port-range", "no-port", "port-text", "ipv4", "ipv6", "hostname", "listen-hostname"],
+)
+def test_zenoh_endpoint_address_is_checked_and_the_override_named(
+    override: str, problem: str
+) -> None:
+    message = _error(DEMO, [override])
+    (line,) = _problem_lines(message)
+    assert problem in line, line
+    assert message.endswith(f"(given by --set {override})"), message
+
+
+@pytest.mark.parametrize(
+    "endpoint",
+    ["tcp/[::1]:7447", "tcp/my-host.local:0", "udp/224.0.0.224:7446#iface=eth0", "tcp/x:65535"],
+)
+def test_good_zenoh_endpoints_pass(endpoint: str) -> None:
+    assert load_network(DEMO, [f"zenoh.hub={endpoint}"]).zenoh.hub == endpoint
+
+
+def test_an_empty_network_file_is_an_error(tmp_path: Path) -> None:
+    empty = tmp_path / "empty.yaml"
+    empty.write_text("# nothing yet\n")
+    message = _error(empty, [])
+    assert "the network file is empty" in message and str(empty) in message
+
+
+def test_an_unresolvable_hub_is_named_before_zenoh_starts() -> None:
+    from openptrack_py.transport.zenoh_bus import check_resolvable
+
+    cfg = load_network(DEMO, ["zenoh.hub=tcp/no-such-host.invalid:7447"]).zenoh
+    with pytest.raises(ConfigError, match=r"zenoh\.hub: cannot resolve the host"):
+        check_resolvable(cfg)
 
 
 def test_zenoh_hub_may_be_disabled() -> None:
@@ -466,7 +511,7 @@ def test_read_yaml_empty_file_is_empty_mapping(tmp_path: Path) -> None:
     path = tmp_path / "empty.yaml"
     path.write_text("# nothing here\n")
     assert read_yaml(path) == {}
-    assert load_network(path) == NetworkConfig()
+    assert load_network(None) == NetworkConfig()  # no file at all: the defaults
 
 
 def test_read_yaml_undecodable_file(tmp_path: Path) -> None:

@@ -8,6 +8,8 @@ endpoint string.
 
 from __future__ import annotations
 
+import ipaddress
+import re
 import typing
 from typing import Annotated, Any
 
@@ -50,13 +52,25 @@ class StrictModel(BaseModel):
         return value
 
 
+_HOSTNAME = re.compile(
+    r"^(?=.{1,253}$)([A-Za-z0-9]([A-Za-z0-9\-]{0,61}[A-Za-z0-9])?)"
+    r"(\.([A-Za-z0-9]([A-Za-z0-9\-]{0,61}[A-Za-z0-9])?))*\.?$"
+)
+NETWORK_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+"""Endpoint protocols whose address is ``host:port``."""
+
+
 def check_endpoint(value: str) -> str:
     """Return ``value`` if it is a Zenoh endpoint ``<protocol>/<address>``.
+
+    For network protocols the address must be ``host:port``: an IPv4 address, an IPv6
+    address in brackets or a host name (RFC 1123), and a port in 0-65535 (0: any free
+    port). Whether a name resolves is only known on the machine that uses it.
 
     Raises
     ------
     ValueError
-        Naming the form expected and the protocols allowed.
+        Naming the form expected, the protocols allowed, or what is wrong.
     """
     protocol, sep, address = value.partition("/")
     if not sep or protocol not in ENDPOINT_PROTOCOLS or not address:
@@ -64,4 +78,44 @@ def check_endpoint(value: str) -> str:
             f"must be a Zenoh endpoint '<protocol>/<address>' with protocol one of "
             f"{', '.join(ENDPOINT_PROTOCOLS)}, e.g. 'tcp/127.0.0.1:7447'"
         )
+    if protocol in NETWORK_PROTOCOLS:
+        host, port = split_host_port(address.split("#", 1)[0])
+        if not 0 <= port <= 65535:
+            raise ValueError(f"{value!r}: port must be in 0-65535, got {port}")
+        check_host(host, value)
     return value
+
+
+def split_host_port(address: str) -> tuple[str, int]:
+    """``host:port`` (``[v6]:port`` for IPv6) as ``(host, port)``.
+
+    Raises
+    ------
+    ValueError
+        If there is no port or it is not a number.
+    """
+    host, sep, port = address.rpartition(":")
+    if not sep or not host:
+        raise ValueError(f"{address!r}: expected host:port, e.g. 127.0.0.1:7447")
+    if not port.isdigit():
+        raise ValueError(f"{address!r}: the port must be a number, got {port!r}")
+    return host, int(port)
+
+
+def check_host(host: str, where: str) -> str:
+    """Return ``host`` if it is an IPv4 address, a bracketed IPv6 address or a host name."""
+    if host.startswith("[") and host.endswith("]"):
+        try:
+            ipaddress.IPv6Address(host[1:-1])
+        except ValueError:
+            raise ValueError(f"{where!r}: {host} is not an IPv6 address") from None
+        return host
+    if host.replace(".", "").isdigit():
+        try:
+            ipaddress.IPv4Address(host)
+        except ValueError:
+            raise ValueError(f"{where!r}: {host} is not an IPv4 address") from None
+        return host
+    if not _HOSTNAME.match(host):
+        raise ValueError(f"{where!r}: {host!r} is not a valid host name")
+    return host

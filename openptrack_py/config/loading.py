@@ -219,12 +219,32 @@ def load_config(
         For unreadable files, bad overrides or invalid values.
     """
     data = read_yaml(path) if path is not None else {}
+    overrides = list(overrides)
     data = apply_overrides(data, overrides)
-    return validate_config(model, data, str(path) if path is not None else "config")
+    try:
+        return validate_config(model, data, str(path) if path is not None else "config")
+    except ConfigError as exc:
+        blamed = [o for o in overrides if o.partition("=")[0].strip() in str(exc)]
+        if not blamed:
+            raise
+        sets = ", ".join(f"--set {o}" for o in blamed)
+        raise ConfigError(f"{exc}\n  (given by {sets})") from None
 
 
 def load_network(path: str | Path | None = None, overrides: Iterable[str] = ()) -> NetworkConfig:
-    """Load a network file (see :class:`NetworkConfig`)."""
+    """Load a network file (see :class:`NetworkConfig`).
+
+    Raises
+    ------
+    ConfigError
+        For an empty file (a network needs at least its sensors or simulation), and as
+        :func:`load_config`.
+    """
+    if path is not None and not read_yaml(path):
+        raise ConfigError(
+            f"{path}: the network file is empty; it needs at least 'sensors:' (see "
+            "'openptrack show-config demo' for a complete example)"
+        )
     return load_config(NetworkConfig, path, overrides)
 
 

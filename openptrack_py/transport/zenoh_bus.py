@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import socket
 import threading
 import time
 from collections.abc import Iterable, Sequence
@@ -18,6 +19,7 @@ from collections.abc import Iterable, Sequence
 import zenoh
 
 from openptrack_py.config import ZenohConfig
+from openptrack_py.config.base import NETWORK_PROTOCOLS, split_host_port
 from openptrack_py.errors import ConfigError
 from openptrack_py.transport.base import (
     LivelinessHandler,
@@ -141,6 +143,40 @@ class _Declared:
                 entity.undeclare()  # type: ignore[attr-defined]
 
 
+def check_resolvable(
+    cfg: ZenohConfig,
+    *,
+    listen: Sequence[str] | None = None,
+    connect: Sequence[str] | None = None,
+) -> None:
+    """Check that every host name of the endpoints resolves on this machine.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key, the endpoint and the resolver's answer (instead of Zenoh's
+        error from deep inside its runtime).
+    """
+    named = [("zenoh.hub", cfg.hub)] if cfg.hub else []
+    named += [("zenoh.listen", e) for e in (cfg.listen if listen is None else listen)]
+    named += [("zenoh.connect", e) for e in (cfg.connect if connect is None else connect)]
+    for key, endpoint in named:
+        protocol, _, address = endpoint.partition("/")
+        if protocol not in NETWORK_PROTOCOLS:
+            continue
+        host, port = split_host_port(address.split("#", 1)[0])
+        try:
+            socket.getaddrinfo(host.strip("[]"), port)
+        except (OSError, UnicodeError) as exc:
+            raise ConfigError(f"{key}: cannot resolve the host of {endpoint!r} ({exc})") from None
+
+
+def _first_line(exc: BaseException) -> str:
+    """An exception's message without the source locations a Rust error may carry."""
+    lines = [ln for ln in str(exc).splitlines() if ln.strip() and ".rs:" not in ln]
+    return lines[0].strip() if lines else type(exc).__name__
+
+
 class ZenohBus:
     """A :class:`~openptrack_py.transport.base.Bus` over one Zenoh session.
 
@@ -171,10 +207,11 @@ class ZenohBus:
         _init_zenoh_logging()
         self.config = cfg if cfg is not None else ZenohConfig()
         zcfg = build_zenoh_config(self.config, listen=listen, connect=connect, as_hub=as_hub)
+        check_resolvable(self.config, listen=listen, connect=connect)
         try:
             self.session = zenoh.open(zcfg)
         except Exception as exc:
-            raise ConfigError(f"zenoh: cannot open a session: {exc}") from None
+            raise ConfigError(f"zenoh: cannot open a session: {_first_line(exc)}") from None
         self._closed = False
         self._lock = threading.Lock()
         if settle_s > 0 and not as_hub:
