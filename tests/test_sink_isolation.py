@@ -367,6 +367,19 @@ def test_heartbeats_go_on_while_the_room_is_empty(receiver: Receiver) -> None:
     assert stamps == sorted(stamps)
 
 
+def test_a_frame_dropped_before_the_sink_shows_as_a_gap_in_seq(receiver: Receiver) -> None:
+    """The sink sends each frame's own number: a client can tell that frame 3 was lost."""
+    cfg = UdpSinkConfig(host="127.0.0.1", port=receiver.port, heartbeat=False)
+    sink = UdpJsonSink(cfg, "udp0")
+    try:
+        for seq in (1, 2, 4, 5):  # 3 was dropped by a full queue
+            sink.send(_frame(seq, _track(7, 1.0, 1.0)), 0.0)
+        assert receiver.wait(lambda d: len(d) >= 4)
+    finally:
+        sink.close()
+    assert [m["header"]["seq"] for m in receiver.parsed()] == [1, 2, 4, 5]
+
+
 # ================================================================ OutputService
 
 

@@ -94,15 +94,18 @@ def test_tracks_are_output_sorted_and_independent() -> None:
     assert [(t.id, t.x) for t in out.tracks] == [(2, 10.0), (9, 2.0)]
 
 
-def test_alive_ids_are_forgotten_after_alive_timeout_without_tracker_input() -> None:
-    s = MovingAverageSmoother(track_lifetime_s=0.25, alive_timeout_s=2.0)
-    _push(s, 1.0, _track(5, 0.0, 0.0), alive=(5, 6))
-    assert s.frame(1.0).alive_ids == (5, 6)
-    assert s.frame(3.0 - 2**-20).alive_ids == (5, 6)
-    late = s.frame(3.0)  # 1.0 + 2.0, exactly: the tracker is gone
-    assert late.alive_ids == () and late.tracks == () and late.max_id == 9
-    _push(s, 4.0, alive=(6,))  # it is back, with an empty room
-    assert s.frame(4.1).alive_ids == (6,)
+def test_alive_ids_are_exactly_the_ids_published_and_max_id_never_falls() -> None:
+    """Heartbeats never list an id no frame showed (a tentative one, a departed one)."""
+    s = MovingAverageSmoother(track_lifetime_s=0.25)
+    _push(s, 1.0, _track(5, 0.0, 0.0), alive=(5, 6))  # 6: alive in the tracker, not shown
+    first = s.frame(1.0)
+    assert first.alive_ids == (5,) and first.max_id == 5
+    assert s.frame(1.2).alive_ids == (5,)
+    gone = s.frame(1.25)  # 0.25 s after its last position: it leaves, from heartbeats too
+    assert gone.tracks == () and gone.alive_ids == () and gone.max_id == 5
+    _push(s, 2.0, _track(3, 1.0, 1.0))
+    back = s.frame(2.0)
+    assert back.alive_ids == (3,) and back.max_id == 5
 
 
 @pytest.mark.parametrize(
@@ -112,8 +115,7 @@ def test_alive_ids_are_forgotten_after_alive_timeout_without_tracker_input() -> 
         ({"window_size": -3}, "window_size"),
         ({"position_lifetime_s": 0.0}, "position_lifetime_s"),
         ({"track_lifetime_s": -1.0}, "track_lifetime_s"),
-        ({"alive_timeout_s": 0}, "alive_timeout_s"),
-        ({"alive_timeout_s": math.nan}, "alive_timeout_s"),
+        ({"track_lifetime_s": math.nan}, "track_lifetime_s"),
     ],
 )
 def test_smoother_constructor_errors_name_the_argument(kwargs: dict, name: str) -> None:

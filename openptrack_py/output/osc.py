@@ -95,14 +95,12 @@ class OscSink:
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.setblocking(False)
         self._resolver = _Resolver(cfg.host, cfg.port)
-        self._seq = 0
 
     def send(self, frame: TrackBatch, now: float) -> None:
         """Send one frame's bundle."""
         address = self._resolver.address()
-        self._seq += 1
         try:
-            self._sock.sendto(build_bundle(frame, self._seq, self.cfg.prefix), address)
+            self._sock.sendto(build_bundle(frame, frame.seq, self.cfg.prefix), address)
         except BlockingIOError:
             raise OSError("socket buffer full, bundle dropped") from None
 

@@ -11,6 +11,7 @@ every sink's own worker (UDP JSON, OSC, WebSocket) and, when ``republish`` is on
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 from openptrack_py.config import NetworkConfig, OutputConfig
 from openptrack_py.messages.codec import decode_track_batch, encode_track_batch
@@ -65,9 +66,16 @@ class OutputService:
         self.workers, self.web = build_sinks(cfg, network, node)
         self._republish = node.publisher(node.keys.tracks_smoothed) if cfg.republish else None
         self._last_empty = -float("inf")
+        self._seq = 0
 
     def dispatch(self, frame: TrackBatch) -> None:
-        """Hand a frame to every sink (never blocks) and republish it."""
+        """Number a frame, hand it to every sink (never blocks) and republish it.
+
+        Frames are numbered here, as produced, so a frame a slow sink drops shows to its
+        client as a gap in ``seq``.
+        """
+        self._seq += 1
+        frame = replace(frame, seq=self._seq)
         for worker in self.workers:
             worker.submit(frame)
         if self._republish is not None:

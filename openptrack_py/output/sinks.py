@@ -163,7 +163,6 @@ class UdpJsonSink:
             self._sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
         self._sock.setblocking(False)  # a full buffer drops a datagram, never waits
         self._resolver = _Resolver(cfg.host, cfg.port)
-        self._seq = 0
         self._heartbeat_seq = 0
         self._alive: tuple[int, ...] = ()
         self._max_id = 0
@@ -178,10 +177,9 @@ class UdpJsonSink:
     def send(self, frame: TrackBatch, now: float) -> None:
         """Send one tracks frame (one datagram unless it exceeds the size limit)."""
         self._alive, self._max_id = frame.alive_ids, frame.max_id
-        self._seq += 1
         for data in encode_tracks(
             frame.tracks,
-            seq=self._seq,
+            seq=frame.seq,
             stamp=frame.stamp,
             fmt=self.cfg.format,
             trailing_nul=self.cfg.trailing_nul,

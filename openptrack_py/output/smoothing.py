@@ -41,19 +41,16 @@ class MovingAverageSmoother:
         Older positions leave the window (the newest one always stays).
     track_lifetime_s : float
         A track leaves the output this long after its last measured position.
-    alive_timeout_s : float
-        ``alive_ids`` are forgotten this long after the last tracker message (a dead
-        tracker does not leave tracks alive in heartbeats).
+
+    A frame's ``alive_ids`` are exactly the ids of its tracks and ``max_id`` the highest
+    id this smoother ever published, so heartbeats never list an id no frame showed.
     """
 
     window_size: int = 5
     position_lifetime_s: float = 0.6
     track_lifetime_s: float = 0.6
-    alive_timeout_s: float = 2.0
     _tracks: dict[int, _TrackWindow] = field(default_factory=dict)
-    _alive: tuple[int, ...] = ()
     _max_id: int = 0
-    _last_input: float = -float("inf")
     _seq: int = 0
 
     def __post_init__(self) -> None:
@@ -61,7 +58,7 @@ class MovingAverageSmoother:
             raise ValueError(
                 f"MovingAverageSmoother: window_size must be >= 1, got {self.window_size}"
             )
-        for name in ("position_lifetime_s", "track_lifetime_s", "alive_timeout_s"):
+        for name in ("position_lifetime_s", "track_lifetime_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(
                     f"MovingAverageSmoother: {name} must be > 0, got {getattr(self, name)}"
@@ -69,7 +66,6 @@ class MovingAverageSmoother:
 
     def push(self, batch: TrackBatch, now: float) -> None:
         """Take one tracker message received at ``now`` (local clock)."""
-        self._alive, self._max_id, self._last_input = batch.alive_ids, batch.max_id, now
         for track in batch.tracks:
             window = self._tracks.get(track.id)
             measured = track.visibility == Visibility.VISIBLE
@@ -100,12 +96,13 @@ class MovingAverageSmoother:
             y = sum(p[2] for p in positions) / n
             out.append(replace(window.last, x=x, y=y))
         out.sort(key=lambda t: t.id)
-        fresh = now - self._last_input < self.alive_timeout_s
+        ids = tuple(t.id for t in out)
+        self._max_id = max(self._max_id, *ids, 0)
         return TrackBatch(
             stamp=now,
             seq=self._seq,
             frame_id="world",
             tracks=tuple(out),
-            alive_ids=self._alive if fresh else (),
+            alive_ids=ids,
             max_id=self._max_id,
         )

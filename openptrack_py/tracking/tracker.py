@@ -162,6 +162,7 @@ class Tracker:
         self.table = TrackTable()
         self.time: float | None = None
         self.max_id = 0
+        self.max_published_id = 0
         self.seq = 0
         self.frame_id = "world"
         self.counters: dict[str, int] = dict.fromkeys(COUNTERS, 0)
@@ -211,6 +212,7 @@ class Tracker:
         self.table = other.table
         self.time = other.time
         self.max_id = other.max_id
+        self.max_published_id = other.max_published_id
         self.seq = other.seq
         self.frame_id = other.frame_id
         self.counters = other.counters
@@ -219,16 +221,22 @@ class Tracker:
                 mine.restore(theirs.snapshot())  # type: ignore[attr-defined]
 
     def output(self, t: float) -> TrackBatch:
-        """The tracks as a message (confirmed ones unless ``publish_tentative``)."""
+        """The tracks as a message (confirmed ones unless ``publish_tentative``).
+
+        ``alive_ids`` are exactly the ids of the tracks in the message and ``max_id``
+        the highest id ever published: a client never hears of an id it was not shown.
+        """
         self.seq += 1
         tracks = published_tracks(self.table, t, self.params)
+        ids = tuple(tr.id for tr in tracks)
+        self.max_published_id = max(self.max_published_id, *ids, 0)
         return TrackBatch(
             stamp=t,
             seq=self.seq,
             frame_id=self.frame_id,
             tracks=tuple(self.identity.annotate(tracks)),
-            alive_ids=tuple(self.table.ids.tolist()),
-            max_id=self.max_id,
+            alive_ids=ids,
+            max_id=self.max_published_id,
         )
 
     # ------------------------------------------------------- steps and replays

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from openptrack_py.config import TrackerConfig
+from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.track import TrackBatch
 from openptrack_py.tracking import (
     Tracker,
@@ -29,12 +30,18 @@ STILL = {"confirm_min_displacement_m": 0.0, "confirm_min_age_s": 0.0}
 # ------------------------------------------------------------- lifecycle
 
 
+def _kept(tracker: Tracker, batch: DetectionBatch) -> list[int]:
+    """The ids the tracker keeps (published or not) after a step."""
+    tracker.step(batch)
+    return tracker.table.ids.tolist()
+
+
 def test_tentative_tracks_are_not_published_by_default() -> None:
     tracker = build_tracker(TrackerConfig(**STILL))
     out = tracker.step(make_batch(T0, [det(2.0, 2.0)]))
     assert out.tracks == ()
-    assert out.alive_ids == (1,)
-    assert out.max_id == 1
+    assert out.alive_ids == ()  # heartbeats never list an id no frame showed
+    assert out.max_id == 0
 
 
 def test_tentative_tracks_are_published_on_request() -> None:
@@ -83,8 +90,8 @@ def test_unconfirmed_track_is_deleted_after_sec_before_fake() -> None:
     tracker.step(make_batch(T0, [det(2.0, 2.0)]))
     tracker.step(make_batch(T0 + 0.5, [det(2.0, 2.0)]))  # second hit, still tentative
     assert tracker.table.hits.tolist() == [2]
-    assert tracker.step(make_batch(T0 + 1.45)).alive_ids == (1,)
-    assert tracker.step(make_batch(T0 + 1.55)).alive_ids == ()
+    assert _kept(tracker, make_batch(T0 + 1.45)) == [1]
+    assert _kept(tracker, make_batch(T0 + 1.55)) == []
     assert tracker.counters["tracks_deleted"] == 1
 
 
@@ -93,8 +100,8 @@ def test_tentative_track_needs_its_hits_close_together() -> None:
     tracker = build_tracker(cfg)
     tracker.step(make_batch(T0, [det(2.0, 2.0)]))
     tracker.step(make_batch(T0 + 0.4, [det(2.0, 2.0)]))  # second hit within the timeout
-    assert tracker.step(make_batch(T0 + 0.85)).alive_ids == (1,)  # 0.45 s unseen: kept
-    assert tracker.step(make_batch(T0 + 0.95)).alive_ids == ()  # 0.55 s unseen: gone
+    assert _kept(tracker, make_batch(T0 + 0.85)) == [1]  # 0.45 s unseen: kept
+    assert _kept(tracker, make_batch(T0 + 0.95)) == []  # 0.55 s unseen: gone
     # the same three hits 0.2 s apart confirm a track
     tracker = build_tracker(cfg)
     for k in range(3):
@@ -110,9 +117,9 @@ def test_confirmed_track_is_deleted_after_sec_before_old(old: float) -> None:
     t = last
     while t + 0.1 < last + old - 0.05:
         t += 0.1
-        assert tracker.step(make_batch(t)).alive_ids == (1,)
-    assert tracker.step(make_batch(last + old - 0.02)).alive_ids == (1,)
-    assert tracker.step(make_batch(last + old + 0.02)).alive_ids == ()
+        assert _kept(tracker, make_batch(t)) == [1]
+    assert _kept(tracker, make_batch(last + old - 0.02)) == [1]
+    assert _kept(tracker, make_batch(last + old + 0.02)) == []
 
 
 def test_unseen_confirmed_track_is_kept_but_not_published() -> None:
@@ -120,8 +127,8 @@ def test_unseen_confirmed_track_is_kept_but_not_published() -> None:
     last = feed_still(tracker, (2.0, 2.0), 4)
     assert [t.id for t in tracker.step(make_batch(last + 0.4)).tracks] == [1]
     out = tracker.step(make_batch(last + 0.6))
-    assert out.tracks == ()
-    assert out.alive_ids == (1,)
+    assert out.tracks == () and out.alive_ids == ()
+    assert tracker.table.ids.tolist() == [1]  # kept, with its id
     out = tracker.step(make_batch(last + 1.5, [det(2.1, 2.0)]))  # seen again: same id
     assert [t.id for t in out.tracks] == [1]
 
@@ -150,12 +157,12 @@ def test_low_confidence_detections_update_but_do_not_keep_alive() -> None:
         t += FRAME
         out = tracker.step(make_batch(t, weak))
     assert np.sqrt(tracker.table.cov[0, 0, 0]) > sd
-    assert out.alive_ids == (1,)
+    assert tracker.table.ids.tolist() == [1]
     assert tracker.counters["tracks_started"] == 1  # weak detections never start tracks
     while t < last + 2.1:
         t += FRAME
         out = tracker.step(make_batch(t, [det(2.2, 2.0, conf=0.3)]))
-    assert out.alive_ids == ()
+    assert tracker.table.ids.tolist() == [] and out.alive_ids == ()
 
 
 def test_detections_below_min_confidence_detections_are_ignored() -> None:
@@ -174,29 +181,29 @@ def test_second_blob_inside_the_gate_never_starts_a_track(conf: float) -> None:
     """A split blob (or a second sensor's duplicate) in the same batch as the person."""
     tracker = build_tracker(TrackerConfig(**STILL))
     last = feed_still(tracker, (2.0, 2.0), 4)
-    out = tracker.step(make_batch(last + FRAME, [det(2.0, 2.0), det(2.15, 2.05, conf=conf)]))
-    assert out.alive_ids == (1,)
+    tracker.step(make_batch(last + FRAME, [det(2.0, 2.0), det(2.15, 2.05, conf=conf)]))
+    assert tracker.table.ids.tolist() == [1]
     assert tracker.counters["tracks_started"] == 1
     # the same blob outside every gate is someone else
-    out = tracker.step(make_batch(last + 2 * FRAME, [det(2.0, 2.0), det(3.5, 2.0, conf=0.9)]))
-    assert sorted(out.alive_ids) == [1, 2]
+    tracker.step(make_batch(last + 2 * FRAME, [det(2.0, 2.0), det(3.5, 2.0, conf=0.9)]))
+    assert sorted(tracker.table.ids.tolist()) == [1, 2]
 
 
-def test_ids_are_never_reused_and_alive_ids_include_tentative() -> None:
+def test_ids_are_never_reused_and_alive_ids_are_the_published_ones() -> None:
     tracker = build_tracker(TrackerConfig(sec_before_old=1.0, sec_before_fake=1.0, **STILL))
     last = feed_still(tracker, (2.0, 2.0), 3)
     out = tracker.step(make_batch(last + FRAME, [det(2.0, 2.0), det(5.0, 5.0)]))
     assert [t.id for t in out.tracks] == [1]
-    assert sorted(out.alive_ids) == [1, 2]
-    assert out.max_id == 2
+    assert out.alive_ids == (1,)  # 2 is tentative: alive in the tracker, not shown
+    assert out.max_id == 1
     out = tracker.step(make_batch(last + 2.0))  # both die
     assert out.alive_ids == ()
-    assert out.max_id == 2
+    assert out.max_id == 1
     out = tracker.step(make_batch(last + 2.1, [det(2.0, 2.0)]))  # same place, new person
-    assert out.alive_ids == (3,)
-    assert out.max_id == 3
+    assert out.alive_ids == ()
     out = _step_still(tracker, 2, (2.0, 2.0))
-    assert [t.id for t in out.tracks] == [3]
+    assert [t.id for t in out.tracks] == [3]  # 2 is never used again
+    assert out.alive_ids == (3,) and out.max_id == 3
 
 
 def test_track_fields_of_a_walker() -> None:
