@@ -24,7 +24,7 @@ from openptrack_py.tracking.service import TrackerService
 
 def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     """Track until stopped."""
-    TrackerService(node, cfg.tracker or TrackerConfig()).run()
+    TrackerService(node, cfg.tracker or TrackerConfig(), cfg).run()
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -24,6 +24,11 @@ SENSOR_TYPE_NAMES: tuple[SensorTypeName, ...] = typing.get_args(SensorTypeName)
 """The same names, in table order."""
 
 
+CROWD_DENSITY_PER_M2 = 2.0
+"""People per square metre in a dense crowd (Fruin's densest level of service begins
+near 2 per square metre)."""
+
+
 @dataclass(frozen=True)
 class SensorType:
     """Nominal facts of one kind of depth sensor.
@@ -73,6 +78,16 @@ class SensorType:
     detector_min_points: int
     time_of_flight: bool
     live_input: str | None = None
+
+    @property
+    def max_people_in_view(self) -> int:
+        """Most people the sensor can see at once (a bound for admission control).
+
+        Its view within the reliable range at a dense crowd's
+        :data:`CROWD_DENSITY_PER_M2`, at least ten.
+        """
+        area = 0.5 * self.reliable_range_m**2 * math.radians(self.hfov_deg)
+        return max(10, math.ceil(area * CROWD_DENSITY_PER_M2))
 
     @property
     def intrinsics(self) -> tuple[float, float, float, float]:

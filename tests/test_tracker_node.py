@@ -208,41 +208,56 @@ def test_malformed_input_and_a_dead_publisher_do_not_stop_the_tracker(
 # ------------------------------------------------------------------------ frames
 
 
-def _frame_batches(frames: list[str]) -> tuple[list[TrackBatch], int]:
-    """Feed one person seen in the given frames, batch after batch; tracks and drops."""
-    from openptrack_py.config import TrackerConfig
+def _frame_batches(
+    sent: list[tuple[str, str]], sensors: list[dict]
+) -> tuple[list[TrackBatch], int]:
+    """Feed one person as ``(sensor, frame)`` batches to a tracker of a network of
+    ``sensors``; the tracks and the batches dropped for their frame."""
+    from openptrack_py.config import NetworkConfig, TrackerConfig
     from openptrack_py.runtime.node import Node
     from openptrack_py.tracking.service import TrackerService
     from openptrack_py.transport.memory import MemoryBus, MemoryNetwork
 
+    network = NetworkConfig(sensors=sensors)
     net = MemoryNetwork()
     sender = MemoryBus(net)
     tracks: list[TrackBatch] = []
     with MemoryBus(net) as bus, Node("tracker", bus, stats_interval_s=0) as node:
-        service = TrackerService(node, TrackerConfig(reorder_window_s=0.0))
+        service = TrackerService(node, TrackerConfig(reorder_window_s=0.0), network)
         sender.subscribe(
             "opt/default/tracks", lambda s: tracks.append(decode_track_batch(s.payload))
         )
         t0 = time.time()
-        for k, frame in enumerate(frames):
+        for k, (sensor, frame) in enumerate(sent):
             det = Detection(
                 x=2.0 + 0.03 * k, y=1.0, z=0.9, height=1.7, confidence=0.9, distance=3.0
             )
-            batch = DetectionBatch(f"s_{frame}", k, t0 + k / 30, frame, (det,))
-            sender.put(f"opt/default/detections/s_{frame}", encode_detection_batch(batch))
+            batch = DetectionBatch(sensor, k, t0 + k / 30, frame, (det,))
+            sender.put(f"opt/default/detections/{sensor}", encode_detection_batch(batch))
             service.step_once(timeout_s=0.05)
         return tracks, node.counters.get("wrong_frame")
 
 
+CAM = {"id": "cam", "source": "camera"}  # no pose: it reports in its own floor frame
+POSED = {"id": "a", "source": "camera", "pose": {"x": 0.0, "y": 0.0}}
+
+
 def test_a_sensor_without_pose_is_tracked_alone_in_its_own_frame() -> None:
-    tracks, dropped = _frame_batches(["cam"] * 30)  # a track is confirmed once it moved
+    tracks, dropped = _frame_batches([("cam", "cam")] * 30, [CAM])
     assert dropped == 0
     assert tracks and {t.frame_id for t in tracks} == {"cam"}
     assert any(t.tracks for t in tracks)
 
 
 def test_batches_in_another_frame_are_counted_and_never_fused() -> None:
-    tracks, dropped = _frame_batches(["world"] * 6 + ["cam", "world", "cam", "world"])
+    sent = [("a", "world")] * 6 + [("cam", "cam"), ("a", "world")] * 2
+    tracks, dropped = _frame_batches(sent, [POSED, CAM])
     assert dropped == 2
     assert {t.frame_id for t in tracks} == {"world"}
-    assert len(tracks) == 8  # one step per world batch only
+
+
+def test_an_uncalibrated_sensor_speaking_first_does_not_lock_the_frame() -> None:
+    sent = [("cam", "cam")] * 3 + [("a", "world")] * 30
+    tracks, dropped = _frame_batches(sent, [POSED, CAM])
+    assert dropped == 3
+    assert {t.frame_id for t in tracks} == {"world"} and any(t.tracks for t in tracks)

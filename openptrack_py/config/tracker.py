@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from openptrack_py.config.base import StrictModel
+from openptrack_py.config.base import Name, StrictModel
 
 
 class TrackerConfig(StrictModel):
@@ -168,6 +168,27 @@ class TrackerConfig(StrictModel):
     support_rate : float
         Weight of one expected sensor frame in a track's support (the exponential
         average of detected / expected frames).
+    frame_id : str or None
+        The frame tracked; batches in another are refused (``wrong_frame``). ``None``:
+        ``world``, unless the network has a single sensor without a pose (then that
+        sensor's own floor frame, named by its id).
+    discover_sensors : bool
+        Track sensors the network file does not list (otherwise their batches are
+        counted as ``unknown_sensor`` and ignored; a network that lists no sensor
+        discovers them all); a discovered sensor is forgotten once silent for
+        ``sensor_forget_s``.
+    sensor_forget_s : float
+        See ``discover_sensors``.
+    max_clock_offset_s : float
+        A sensor's first batch is taken only if stamped within this of its arrival.
+    max_clock_jump_s : float
+        A batch whose stamp disagrees with its sensor's clock (the median of arrival
+        minus stamp over its recent batches) by more is refused (``bad_stamp``): one
+        batch stamped far in the future or past never moves the clock.
+    max_latency_s : float
+        Load shedding: a batch that waited longer than this before the tracker could
+        take it is dropped (``shed``), so latency stays bounded when the tracker falls
+        behind (newest wins).
     """
 
     host: str = "localhost"
@@ -218,6 +239,12 @@ class TrackerConfig(StrictModel):
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
     unseen_stop_s: float = Field(1.0, ge=0.0, le=60.0)
     shared_noise_factor: float = Field(10.0, ge=1.0, le=100.0)
+    frame_id: Name | None = None
+    discover_sensors: bool = False
+    sensor_forget_s: float = Field(30.0, gt=0.0, le=86400.0)
+    max_clock_offset_s: float = Field(3600.0, gt=0.0, le=1e9)
+    max_clock_jump_s: float = Field(1.0, gt=0.0, le=3600.0)
+    max_latency_s: float = Field(0.25, gt=0.0, le=60.0)
 
     @model_validator(mode="after")
     def _birth_gate_outside_gate(self) -> TrackerConfig:

@@ -46,6 +46,7 @@ class ClockAligner:
     def __init__(self, memory_s: float = 60.0) -> None:
         self.memory_s = memory_s
         self._sensors: dict[str, _SensorClock] = {}
+        self._last_prune = -float("inf")
 
     def observe(self, sensor_id: str, stamp: float, arrival: float) -> None:
         """Record one batch's arrival."""
@@ -59,6 +60,12 @@ class ClockAligner:
         while samples[0][0] < arrival - self.memory_s:
             samples.popleft()
         clock.offset = samples[0][1]
+        if len(self._sensors) > 1 and arrival - self._last_prune > 1.0:
+            self._last_prune = arrival
+            for name in [
+                n for n, c in self._sensors.items() if c.samples[-1][0] < arrival - self.memory_s
+            ]:
+                del self._sensors[name]  # silent for the whole memory: forgotten
 
     def correction(self, sensor_id: str) -> float:
         """Seconds to add to this sensor's stamps."""
@@ -87,7 +94,8 @@ class ReorderBuffer:
     window_s : float
         Longest wait of a batch; 0 releases everything at once (arrival order).
     sensor_timeout_s : float
-        A sensor silent this long is not waited for.
+        A sensor silent this long is not waited for (and after ten times as long it is
+        forgotten).
     """
 
     def __init__(self, window_s: float = 0.05, sensor_timeout_s: float = 1.0) -> None:
@@ -98,6 +106,7 @@ class ReorderBuffer:
         self._held: list[tuple[float, int, float, DetectionBatch]] = []  # stamp, n, arrival
         self._count = 0
         self._sensors: dict[str, _SensorTiming] = {}
+        self._last_prune = -float("inf")
 
     def __len__(self) -> int:
         return len(self._held)
@@ -117,6 +126,11 @@ class ReorderBuffer:
             timing.last_arrival = arrival
         self._count += 1
         bisect.insort(self._held, (batch.stamp, self._count, arrival, batch))
+        if arrival - self._last_prune > self.sensor_timeout_s:
+            self._last_prune = arrival
+            forget = 10.0 * self.sensor_timeout_s
+            for name in [n for n, s in self._sensors.items() if arrival - s.last_arrival > forget]:
+                del self._sensors[name]
         return self.release(arrival)
 
     def _safe(self, stamp: float, sensor_id: str, now: float) -> bool:

@@ -5,6 +5,12 @@
 the :class:`~openptrack_py.tracking.pipeline.TrackingPipeline`, and publishes one
 TrackBatch on ``opt/<site>/tracks`` after every step.
 
+Admission control (:mod:`~openptrack_py.tracking.admission`) refuses, and counts, batches
+that would harm the tracker although well formed: from a sensor the network does not
+list, on another sensor's key, in another frame, faster than the sensor's rate, stamped
+far from its clock; detections beyond what a sensor can see are capped. Load shedding: a
+batch that waited longer than ``max_latency_s`` for the tracker is dropped (``shed``).
+
 Live reconfiguration: a :class:`~openptrack_py.messages.ConfigUpdate` put on
 ``opt/<site>/config/<node>`` is validated against
 :class:`~openptrack_py.config.TrackerConfig` and, if valid, applied between two steps
@@ -17,7 +23,7 @@ from __future__ import annotations
 
 import time
 
-from openptrack_py.config import TrackerConfig, validate_config
+from openptrack_py.config import NetworkConfig, TrackerConfig, validate_config
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages.codec import (
     decode_config_update,
@@ -28,12 +34,48 @@ from openptrack_py.messages.codec import (
 from openptrack_py.messages.config_update import ConfigAck, ConfigUpdate
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.runtime.node import Inbox, Node, Received
+from openptrack_py.sensor_types import SENSOR_TYPES
+from openptrack_py.tracking.admission import Admission, SensorLimits
 from openptrack_py.tracking.factory import build_tracker
 from openptrack_py.tracking.ordering import ClockAligner
 from openptrack_py.tracking.pipeline import TrackingPipeline
 
 FIXED_WHILE_RUNNING = frozenset({"host"})
 """Parameters that only take effect at start-up."""
+
+
+def tracked_frame(network: NetworkConfig, config: TrackerConfig) -> str:
+    """The frame the tracker fuses.
+
+    The configured one, else ``world``, unless the network is one sensor without a pose
+    (then that sensor's own floor frame, named by its id).
+    """
+    if config.frame_id is not None:
+        return config.frame_id
+    sensors = network.sensors
+    if len(sensors) == 1 and sensors[0].pose is None and sensors[0].calibration is None:
+        return sensors[0].id
+    return "world"
+
+
+def build_admission(network: NetworkConfig, config: TrackerConfig) -> Admission:
+    """Admission control for the network's sensors under the tracker's settings."""
+    limits = {}
+    for sensor in network.sensors:
+        kind = SENSOR_TYPES[sensor.type]
+        limits[sensor.id] = SensorLimits(sensor.rate_hz or kind.rate_hz, kind.max_people_in_view)
+    widest = max(SENSOR_TYPES.values(), key=lambda k: k.max_people_in_view)
+    return Admission(
+        limits,
+        tracked_frame(network, config),
+        discover_sensors=config.discover_sensors or not network.sensors,
+        default_limits=SensorLimits(
+            max(k.rate_hz for k in SENSOR_TYPES.values()), widest.max_people_in_view
+        ),
+        max_clock_offset_s=config.max_clock_offset_s,
+        max_clock_jump_s=config.max_clock_jump_s,
+        sensor_forget_s=config.sensor_forget_s,
+    )
 
 
 class TrackerService:
@@ -45,17 +87,29 @@ class TrackerService:
         The node (bus, counters, stop flag).
     config : TrackerConfig
         Initial parameters.
+    network : NetworkConfig, optional
+        The network: its sensors are the ones admitted (a network that lists none
+        admits every sensor, as ``discover_sensors`` does).
     idle_s : float
         Longest wait for a batch before checking the reorder buffer's timeouts.
     """
 
-    def __init__(self, node: Node, config: TrackerConfig, idle_s: float = 0.005) -> None:
+    def __init__(
+        self,
+        node: Node,
+        config: TrackerConfig,
+        network: NetworkConfig | None = None,
+        idle_s: float = 0.005,
+    ) -> None:
         self.node = node
         self.config = config
+        self.network = network if network is not None else NetworkConfig()
         self.idle_s = idle_s
         self.pipeline = TrackingPipeline.from_config(config)
+        self.admission = build_admission(self.network, config)
+        self.pipeline.tracker.frame_id = self.admission.frame_id
         keys = node.keys
-        self._frame: str | None = None
+        self._key_prefix = keys.detections("")
         self._batches = node.subscribe(keys.detections("*"), decode_detection_batch, maxsize=1000)
         self._updates: Inbox[Received[ConfigUpdate]] = node.subscribe(
             keys.config(node.name), decode_config_update, maxsize=100
@@ -99,6 +153,12 @@ class TrackerService:
         self.pipeline.buffer.window_s = new.reorder_window_s
         if new.clock_correction != self.config.clock_correction:
             self.pipeline.aligner = ClockAligner() if new.clock_correction == "arrival" else None
+        fresh = build_admission(self.network, new)
+        fresh.counters = self.admission.counters
+        if fresh.frame_id == self.admission.frame_id:
+            fresh._sensors = self.admission._sensors  # keep what is known of each clock
+        self.admission = fresh
+        tracker.frame_id = fresh.frame_id
         self.config = new
 
     # ---------------------------------------------------------------------- loop
@@ -109,33 +169,26 @@ class TrackerService:
 
     def _report_counters(self) -> None:
         counters = self.node.counters
-        for name, value in self.pipeline.tracker.counters.items():
+        counts = {**self.pipeline.tracker.counters, **self.admission.counters}
+        for name, value in counts.items():
             delta = value - self._reported.get(name, 0)
             if delta > 0:
                 counters.inc(name, delta)
             self._reported[name] = value
 
-    def _in_frame(self, batch: DetectionBatch) -> bool:
-        """Whether a batch is in the frame being tracked (the first batch's frame).
-
-        Sensors with a pose report in ``world``; one without reports in its own floor
-        frame, which can be tracked alone but never fused with others: such batches are
-        counted as ``wrong_frame`` and dropped.
-        """
-        tracker = self.pipeline.tracker
-        if self._frame is None:
-            self._frame = tracker.frame_id = batch.frame_id
-        if batch.frame_id == self._frame:
-            return True
-        self.node.counters.inc("wrong_frame")
-        self.node.bad_input.warning(
-            f"frame:{batch.sensor_id}",
-            "batch in another frame than the one tracked: dropped",
-            sensor=batch.sensor_id,
-            frame=batch.frame_id,
-            tracked=self._frame,
-        )
-        return False
+    def _admit(self, item: Received[DetectionBatch], now: float) -> DetectionBatch | None:
+        """The batch to track, or ``None`` if shed or refused (counted either way)."""
+        if now - item.received > self.config.max_latency_s:
+            self.node.counters.inc("shed")
+            return None
+        key_sensor = item.key[len(self._key_prefix) :] if item.key else None
+        batch = self.admission.admit(key_sensor, item.message, item.received)
+        if batch is None:
+            sensor = item.message.sensor_id
+            self.node.bad_input.warning(
+                f"refused:{sensor}", "batch refused by admission control", sensor=sensor
+            )
+        return batch
 
     def step_once(self, timeout_s: float | None = None) -> int:
         """Handle pending updates, then pending batches; return the number of steps."""
@@ -144,8 +197,9 @@ class TrackerService:
         results = []
         with self.node.counters.timed("step"):
             for item in self._batches.drain(timeout=timeout_s):
-                if self._in_frame(item.message):
-                    results += self.pipeline.push(item.message, item.received)
+                batch = self._admit(item, time.time())
+                if batch is not None:
+                    results += self.pipeline.push(batch, item.received)
             results += self.pipeline.poll(time.time())
         self._publish(results)
         self._report_counters()
