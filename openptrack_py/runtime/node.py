@@ -22,11 +22,15 @@ from openptrack_py.errors import WireFormatError
 from openptrack_py.messages.codec import encode_node_stats
 from openptrack_py.runtime.counters import Counters
 from openptrack_py.runtime.logs import RateLimitedLog
+from openptrack_py.runtime.memory import release_memory
 from openptrack_py.transport.base import Bus, Closable, Publisher, Sample
 from openptrack_py.transport.keys import SiteKeys
 
 T = TypeVar("T")
 log = logging.getLogger(__name__)
+
+RELEASE_MEMORY_EVERY_S = 10.0
+"""How often a node gives free heap memory back to the operating system."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -268,8 +272,12 @@ class Node:
             log.debug("stats publication failed", exc_info=True)
 
     def _stats_loop(self) -> None:
+        last_release = time.monotonic()
         while not self._stop.wait(self.stats_interval_s):
             self.publish_stats()
+            if time.monotonic() - last_release >= RELEASE_MEMORY_EVERY_S:
+                last_release = time.monotonic()
+                release_memory()
 
 
 def run_until_stopped(node: Node, step: Callable[[], Any], idle_s: float = 0.05) -> None:

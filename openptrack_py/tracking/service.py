@@ -22,6 +22,7 @@ parameters in force. An invalid request changes nothing and never stops the node
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 from openptrack_py.config import NetworkConfig, TrackerConfig, validate_config
 from openptrack_py.errors import ConfigError
@@ -40,6 +41,8 @@ from openptrack_py.tracking.factory import build_tracker
 from openptrack_py.tracking.ordering import ClockAligner
 from openptrack_py.tracking.pipeline import TrackingPipeline
 
+INBOX_BATCHES = 256
+"""Batches waiting for the tracker at most (load shedding drops the stale ones anyway)."""
 FIXED_WHILE_RUNNING = frozenset({"host"})
 """Parameters that only take effect at start-up."""
 
@@ -110,13 +113,31 @@ class TrackerService:
         self.pipeline.tracker.frame_id = self.admission.frame_id
         keys = node.keys
         self._key_prefix = keys.detections("")
-        self._batches = node.subscribe(keys.detections("*"), decode_detection_batch, maxsize=1000)
+        # the most any sensor may send: detections beyond it are dropped as they arrive,
+        # so a flood of huge batches never fills memory while they wait
+        self._max_detections = max(
+            [lim.max_detections for lim in self.admission.known.values()]
+            + [self.admission.default_limits.max_detections]
+        )
+        self._batches = node.subscribe(
+            keys.detections("*"), self._decode_capped, maxsize=INBOX_BATCHES
+        )
         self._updates: Inbox[Received[ConfigUpdate]] = node.subscribe(
             keys.config(node.name), decode_config_update, maxsize=100
         )
         self._tracks = node.publisher(keys.tracks)
         self._acks = node.publisher(keys.config_ack(node.name))
         self._reported: dict[str, int] = {}
+
+    def _decode_capped(self, payload: bytes) -> DetectionBatch:
+        """Decode a batch, keeping at most the most confident detections any sensor may send."""
+        batch = decode_detection_batch(payload)
+        excess = len(batch.detections) - self._max_detections
+        if excess > 0:
+            self.node.counters.inc("detections_capped", excess)
+            keep = sorted(batch.detections, key=lambda d: -d.confidence)[: self._max_detections]
+            batch = replace(batch, detections=tuple(keep))
+        return batch
 
     # ------------------------------------------------------------- reconfiguration
 
