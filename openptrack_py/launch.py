@@ -42,11 +42,17 @@ class NodeSpec:
         Module run with ``python -m``.
     args : tuple of str
         Its command-line arguments.
+    finite : bool
+        The node may finish its work (a sensor replaying a recording, a simulation with
+        a duration): a clean exit ends it. Any other node is restarted whenever it
+        exits, clean or not, unless the launcher asked it to stop (a stray SIGTERM, an
+        operator's ``kill``, a crash: the installation keeps running).
     """
 
     name: str
     module: str
     args: tuple[str, ...] = ()
+    finite: bool = False
 
     def command(self) -> list[str]:
         """The full command line."""
@@ -93,7 +99,8 @@ def plan_nodes(
     simulated = [s for s in cfg.sensors if s.source == "sim"]
     wants_sim = simulated or (cfg.sim is not None and cfg.sim.use_scenario_sensors)
     if cfg.sim is not None and host_matches(cfg.sim.host, host) and (wants_sim or not cfg.sensors):
-        specs.append(NodeSpec("sim", "openptrack_py.nodes.sim", common))
+        finite = cfg.sim.duration_s is not None
+        specs.append(NodeSpec("sim", "openptrack_py.nodes.sim", common, finite=finite))
     rgbd = cfg.sim is not None and cfg.sim.sensor_model == "rgbd"
     for sensor in cfg.sensors:
         # A detector per real sensor on its own machine, and per rendered sensor on the
@@ -105,7 +112,8 @@ def plan_nodes(
         if runs_here:
             name = f"detector_{sensor.id}"
             args = (*common, "--sensor", sensor.id, "--name", name)
-            specs.append(NodeSpec(name, "openptrack_py.nodes.detector", args))
+            finite = sensor.source == "recording"
+            specs.append(NodeSpec(name, "openptrack_py.nodes.detector", args, finite=finite))
     if cfg.tracker is not None and host_matches(cfg.tracker.host, host):
         specs.append(NodeSpec("tracker", "openptrack_py.nodes.tracker", common))
     for out in cfg.outputs:
@@ -229,7 +237,7 @@ class Supervisor:
         if child.reader is not None:
             child.reader.join(timeout=1.0)
         child.process = None
-        if code == 0:
+        if code == 0 and child.spec.finite:
             self.say("launch", f"{child.spec.name} finished")
             child.finished = True
             return
@@ -238,7 +246,8 @@ class Supervisor:
         delay = child.backoff_s
         child.backoff_s = min(child.backoff_s * 2, self.backoff_s[1])
         child.restart_at = now + delay
-        self.say("launch", f"{child.spec.name} exited with code {code}; restarting in {delay:g} s")
+        how = f"was stopped by signal {-code}" if code < 0 else f"exited with code {code}"
+        self.say("launch", f"{child.spec.name} {how}; restarting in {delay:g} s")
 
     def request_stop(self) -> None:
         """Ask :meth:`run` to stop all nodes and return (safe from signal handlers)."""

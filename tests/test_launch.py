@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -62,14 +63,14 @@ def test_host_matching(configured: str, host: str, expected: bool) -> None:
 # -------------------------------------------------------------------- supervisor
 
 
-def _crasher(name: str, code: int, delay: float = 0.1) -> NodeSpec:
-    return NodeSpec(name, "tests.procs.crasher", (str(code), str(delay)))
+def _crasher(name: str, code: int, delay: float = 0.1, *, finite: bool = False) -> NodeSpec:
+    return NodeSpec(name, "tests.procs.crasher", (str(code), str(delay)), finite=finite)
 
 
 def test_crashed_node_is_restarted_with_backoff() -> None:
     out = io.StringIO()
     sup = Supervisor(
-        [_crasher("bad", 3), _crasher("good", 0)],
+        [_crasher("bad", 3), _crasher("good", 0, finite=True), _crasher("quits", 0)],
         out=out,
         backoff_s=(0.2, 0.4),
         env={"PYTHONPATH": str(ROOT)},
@@ -80,15 +81,35 @@ def test_crashed_node_is_restarted_with_backoff() -> None:
     assert "[launch] bad exited with code 3; restarting in 0.2 s" in text
     assert "restarting in 0.4 s" in text  # doubled
     assert "restarting in 0.8 s" not in text  # capped
-    assert text.count("[good] crasher up") == 1  # a clean exit is not a crash
+    assert text.count("[good] crasher up") == 1  # a finite node's clean exit: its work is done
     assert "[launch] good finished" in text
+    # any other node is restarted however it exits
+    assert "[launch] quits exited with code 0; restarting in 0.2 s" in text
+    assert text.count("[quits] crasher up") >= 2
     bad = next(c for c in sup.children if c.spec.name == "bad")
     assert bad.restarts >= 3
 
 
+def test_a_node_stopped_by_anyone_but_the_launcher_is_restarted() -> None:
+    out = io.StringIO()
+    sup = Supervisor([_crasher("tracker", 0, 60.0)], out=out, backoff_s=(0.2, 0.4),
+                     env={"PYTHONPATH": str(ROOT)})  # fmt: skip
+    runner = threading.Thread(target=sup.run, kwargs={"duration_s": 20.0})
+    runner.start()
+    try:
+        wait_for(lambda: "tracker" in sup.pids(), 10, "the node")
+        first = sup.pids()["tracker"]
+        os.kill(first, signal.SIGTERM)  # an operator's kill, a stray SIGTERM
+        wait_for(lambda: sup.pids().get("tracker", first) != first, 10, "a restart")
+    finally:
+        sup.request_stop()
+        runner.join(30)
+    assert "[launch] tracker was stopped by signal 15; restarting in 0.2 s" in out.getvalue()
+
+
 def test_supervisor_stops_when_every_node_finished() -> None:
     out = io.StringIO()
-    sup = Supervisor([_crasher("once", 0)], out=out, env={"PYTHONPATH": str(ROOT)})
+    sup = Supervisor([_crasher("once", 0, finite=True)], out=out, env={"PYTHONPATH": str(ROOT)})
     assert sup.run(duration_s=60.0) == 0
     assert "[launch] once finished" in out.getvalue()
 
