@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, model_validator
@@ -185,6 +186,16 @@ class TrackerConfig(StrictModel):
         A batch whose stamp disagrees with its sensor's clock (the median of arrival
         minus stamp over its recent batches) by more is refused (``bad_stamp``): one
         batch stamped far in the future or past never moves the clock.
+    state_dir : Path or None
+        Where the tracker node keeps its checkpoint (``tracker-<site>.ckpt``): its
+        tracks, id counter and learned state, written every ``checkpoint_interval_s``,
+        so that after a crash or restart the same people keep their ids and no id is
+        ever given to a different person. ``None``: no checkpoint (ids start again at 1
+        after a restart).
+    checkpoint_interval_s : float
+        See ``state_dir``.
+    resume_within_s : float
+        A checkpoint at most this old resumes its tracks; an older one only the ids.
     max_latency_s : float
         Load shedding: a batch that waited longer than this before the tracker could
         take it is dropped (``shed``), so latency stays bounded when the tracker falls
@@ -244,6 +255,9 @@ class TrackerConfig(StrictModel):
     sensor_forget_s: float = Field(30.0, gt=0.0, le=86400.0)
     max_clock_offset_s: float = Field(3600.0, gt=0.0, le=1e9)
     max_clock_jump_s: float = Field(1.0, gt=0.0, le=3600.0)
+    state_dir: Path | None = None
+    checkpoint_interval_s: float = Field(1.0, gt=0.0, le=3600.0)
+    resume_within_s: float = Field(30.0, ge=0.0, le=86400.0)
     max_latency_s: float = Field(0.25, gt=0.0, le=60.0)
 
     @model_validator(mode="after")

@@ -37,13 +37,14 @@ from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.runtime.node import Inbox, Node, Received
 from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.tracking.admission import Admission, SensorLimits
+from openptrack_py.tracking.checkpoint import CheckpointStore, resume
 from openptrack_py.tracking.factory import build_tracker
 from openptrack_py.tracking.ordering import ClockAligner
 from openptrack_py.tracking.pipeline import TrackingPipeline
 
 INBOX_BATCHES = 256
 """Batches waiting for the tracker at most (load shedding drops the stale ones anyway)."""
-FIXED_WHILE_RUNNING = frozenset({"host"})
+FIXED_WHILE_RUNNING = frozenset({"host", "state_dir"})
 """Parameters that only take effect at start-up."""
 
 
@@ -125,9 +126,46 @@ class TrackerService:
         self._updates: Inbox[Received[ConfigUpdate]] = node.subscribe(
             keys.config(node.name), decode_config_update, maxsize=100
         )
+        self._store: CheckpointStore | None = None
+        self._saved_at = time.monotonic()
+        if config.state_dir is not None:
+            self._store = CheckpointStore(config.state_dir / f"tracker-{node.keys.site}.ckpt")
+            self._resume()
         self._tracks = node.publisher(keys.tracks)
         self._acks = node.publisher(keys.config_ack(node.name))
         self._reported: dict[str, int] = {}
+
+    # ----------------------------------------------------------------- checkpoints
+
+    def _resume(self) -> None:
+        """Continue from the checkpoint on disk, if any."""
+        assert self._store is not None
+        ckpt = self._store.load()
+        if ckpt is None:
+            return
+        tracker = self.pipeline.tracker
+        count = resume(
+            tracker, ckpt, time.time(), self.config.resume_within_s, self.admission.frame_id
+        )
+        self.node.log.info(
+            "resumed from checkpoint",
+            extra={"fields": {"tracks": count, "next_id": tracker.max_id + 1}},
+        )
+
+    def _checkpoint(self, force: bool = False) -> None:
+        """Write the checkpoint when due (every interval, or before ids run past it)."""
+        if self._store is None:
+            return
+        now = time.monotonic()
+        tracker = self.pipeline.tracker
+        due = now - self._saved_at >= self.config.checkpoint_interval_s
+        if force or due or self._store.due(tracker):
+            try:
+                self._store.save(tracker)
+            except OSError as exc:
+                self.node.counters.inc("checkpoint_errors")
+                self.node.bad_input.warning("checkpoint", f"cannot write checkpoint: {exc}")
+            self._saved_at = now
 
     def _decode_capped(self, payload: bytes) -> DetectionBatch:
         """Decode a batch, keeping at most the most confident detections any sensor may send."""
@@ -224,6 +262,7 @@ class TrackerService:
             results += self.pipeline.poll(time.time())
         self._publish(results)
         self._report_counters()
+        self._checkpoint()
         return len(results)
 
     def run(self) -> None:
@@ -232,3 +271,4 @@ class TrackerService:
         while self.node.running:
             self.step_once(timeout_s=self.idle_s)
         self._publish(self.pipeline.flush())
+        self._checkpoint(force=True)

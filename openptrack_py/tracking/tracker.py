@@ -220,6 +220,24 @@ class Tracker:
             if isinstance(mine, Stateful) and type(mine) is type(theirs):
                 mine.restore(theirs.snapshot())  # type: ignore[attr-defined]
 
+    def snapshot(self) -> _Snapshot:
+        """The tracker's whole state now (independent of the live one): for checkpoints."""
+        return self._snapshot()
+
+    def restore_state(self, table: TrackTable, time: float | None, roles: tuple[Any, ...]) -> None:
+        """Take a track table, a clock and the roles' snapshots (from a checkpoint).
+
+        The checkpoint comes from a tracker of the same configuration; a role whose
+        snapshot does not fit starts afresh.
+        """
+        self.table, self.time = table, time
+        for (role, stateful), state in zip(self._stateful(), roles, strict=False):
+            if stateful and state is not None:
+                try:
+                    role.restore(state)  # type: ignore[attr-defined]
+                except Exception:  # a role changed since: it starts afresh
+                    log.warning("tracker role %s could not resume its state", type(role).__name__)
+
     def output(self, t: float) -> TrackBatch:
         """The tracks as a message (confirmed ones unless ``publish_tentative``).
 
