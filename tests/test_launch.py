@@ -38,7 +38,7 @@ def test_demo_runs_the_simulator_on_this_host() -> None:
 def test_multi_host_file_assigns_nodes_by_host() -> None:
     path = ROOT / "config" / "multi_host.yaml"
     cfg = load_network(path)
-    assert [s.name for s in plan_nodes(cfg, "master", path)] == ["record"]
+    assert [s.name for s in plan_nodes(cfg, "master", path)] == ["tracker", "output", "record"]
     # each sensor machine runs its camera's detector
     assert [s.name for s in plan_nodes(cfg, "sensor-pc-1", path)] == ["detector_north"]
     assert [s.name for s in plan_nodes(cfg, "sensor-pc-2", path)] == ["detector_south"]
