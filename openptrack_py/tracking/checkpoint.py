@@ -12,11 +12,13 @@ temporary file renamed over the old one, readable by its owner only):
   between two checkpoints a restarted tracker starts above every id it could have
   published.
 
-:func:`resume` puts a checkpoint back into a new tracker. The tracks are resumed when the
-checkpoint is recent (``resume_within_s``): the time the tracker was down does not count
-as time unseen (their keepalive and confirmation clocks move on by the gap), their
-velocity is forgotten and their position uncertainty grows by what a person can walk in
-that gap, so the first detections of each person find their old track again. An older
+:func:`resume_ids` and :func:`resume_tracks` put a checkpoint back into a new tracker. The
+tracks are resumed when the checkpoint is recent (the tracker node's
+``resume_within_s``), at the first batch after the restart: the time the tracker was
+down does not count as time unseen (their keepalive and confirmation clocks move on by
+the gap), their velocity is forgotten and their position uncertainty grows by what a
+person can walk in that gap, so the first detections of each person find their old track
+again. An older
 checkpoint resumes only the id counter.
 
 The file is a pickle of the tracker's own state, written and read by the tracker alone
@@ -44,8 +46,12 @@ FORMAT = 1
 """Version of the checkpoint file's contents."""
 ID_BLOCK = 1000
 """Ids reserved ahead of the id counter in each checkpoint."""
-RESUMED_SPEED_MPS = 1.5
+RESUMED_SPEED_MPS = 1.0
 """How fast a resumed track's person may have walked while the tracker was down."""
+RESUMED_MAX_SIGMA_M = 2.0
+"""Largest position uncertainty added to a resumed track: wider, a track could not claim
+a detection over the sensor's clutter (and a person who walked farther in a few seconds
+is found by re-attachment instead)."""
 
 
 @dataclass(frozen=True)
@@ -149,32 +155,33 @@ class CheckpointStore:
         return tracker.max_id > self.reserved_id - ID_BLOCK // 2
 
 
-def resume(
-    tracker: Any, ckpt: Checkpoint, now: float, resume_within_s: float, frame_id: str
-) -> int:
-    """Put ``ckpt`` back into ``tracker``; return how many tracks were resumed.
-
-    Ids always continue above ``ckpt.reserved_id``. Tracks resume only if the checkpoint
-    is at most ``resume_within_s`` old (``now``: wall clock) and in the frame tracked now
-    (``frame_id``); the gap is then not counted as time unseen, and each track's position
-    uncertainty grows by what a person walks in it.
-    """
+def resume_ids(tracker: Any, ckpt: Checkpoint) -> None:
+    """Continue the id counter above every id ``ckpt`` may have given out."""
     tracker.max_id = max(tracker.max_id, ckpt.reserved_id)
     tracker.max_published_id = max(tracker.max_published_id, ckpt.max_published_id)
     tracker.seq = max(tracker.seq, ckpt.seq)
-    gap = now - ckpt.saved_at
-    fresh = ckpt.time is not None and 0 <= gap <= resume_within_s
-    if not fresh or ckpt.frame_id != frame_id or not len(ckpt.table):
+
+
+def resume_tracks(tracker: Any, ckpt: Checkpoint, now: float) -> int:
+    """Put ``ckpt``'s tracks back into ``tracker`` as of tracker time ``now``.
+
+    ``now`` is the capture time of the first batch after the restart: the gap since the
+    checkpoint is not counted as time unseen, and each track's position uncertainty
+    grows by what a person walks in it (its velocity is forgotten). Returns how many
+    tracks were resumed.
+    """
+    if ckpt.time is None or not len(ckpt.table):
         return 0
+    gap = max(now - ckpt.time, 0.0)
     table = ckpt.table.copy()
     for name in ("first_seen", "last_seen", "multi_t", "hist_t", "sensor_hit_t"):
         setattr(table, name, getattr(table, name) + gap)
-    walked = (RESUMED_SPEED_MPS * gap) ** 2
+    walked = min(RESUMED_SPEED_MPS * gap, RESUMED_MAX_SIGMA_M) ** 2
     table.cov[:, 0, 0] += walked
     table.cov[:, 1, 1] += walked
     table.cov[:, 0:2, 2:4] = 0.0
     table.cov[:, 2:4, 0:2] = 0.0
     table.cov[:, 2:4, 2:4] = np.eye(2) * max(float(table.cov[:, 2, 2].max()), 1.0)
     table.x[:, 2:4] = 0.0
-    tracker.restore_state(table, ckpt.time + gap, ckpt.roles)  # type: ignore[operator]
+    tracker.restore_state(table, ckpt.time + gap, ckpt.roles)
     return len(table)

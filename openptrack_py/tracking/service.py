@@ -37,11 +37,19 @@ from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.runtime.node import Inbox, Node, Received
 from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.tracking.admission import Admission, SensorLimits
-from openptrack_py.tracking.checkpoint import CheckpointStore, resume
+from openptrack_py.tracking.checkpoint import (
+    Checkpoint,
+    CheckpointStore,
+    resume_ids,
+    resume_tracks,
+)
 from openptrack_py.tracking.factory import build_tracker
 from openptrack_py.tracking.ordering import ClockAligner
 from openptrack_py.tracking.pipeline import TrackingPipeline
 
+RESUME_MARGIN_S = 0.1
+"""Resumed tracks are as of this long before the first batch after a restart (its stamp
+may still be shifted back a little by the clock alignment)."""
 INBOX_BATCHES = 256
 """Batches waiting for the tracker at most (load shedding drops the stale ones anyway)."""
 FIXED_WHILE_RUNNING = frozenset({"host", "state_dir"})
@@ -127,6 +135,7 @@ class TrackerService:
             keys.config(node.name), decode_config_update, maxsize=100
         )
         self._store: CheckpointStore | None = None
+        self._pending: Checkpoint | None = None
         self._saved_at = time.monotonic()
         if config.state_dir is not None:
             self._store = CheckpointStore(config.state_dir / f"tracker-{node.keys.site}.ckpt")
@@ -138,19 +147,27 @@ class TrackerService:
     # ----------------------------------------------------------------- checkpoints
 
     def _resume(self) -> None:
-        """Continue from the checkpoint on disk, if any."""
+        """Continue the ids of the checkpoint on disk; its tracks at the first batch."""
         assert self._store is not None
         ckpt = self._store.load()
         if ckpt is None:
             return
         tracker = self.pipeline.tracker
-        count = resume(
-            tracker, ckpt, time.time(), self.config.resume_within_s, self.admission.frame_id
-        )
+        resume_ids(tracker, ckpt)
+        age = time.time() - ckpt.saved_at
+        if 0 <= age <= self.config.resume_within_s and ckpt.frame_id == self.admission.frame_id:
+            self._pending = ckpt
+        tracks = len(ckpt.table) if self._pending else 0
         self.node.log.info(
-            "resumed from checkpoint",
-            extra={"fields": {"tracks": count, "next_id": tracker.max_id + 1}},
+            "resuming from checkpoint",
+            extra={"fields": {"tracks": tracks, "next_id": tracker.max_id + 1}},
         )
+
+    def _resume_tracks(self, batch: DetectionBatch) -> None:
+        """At the first batch after a restart: the checkpoint's tracks, as of just before it."""
+        ckpt, self._pending = self._pending, None
+        if ckpt is not None:
+            resume_tracks(self.pipeline.tracker, ckpt, batch.stamp - RESUME_MARGIN_S)
 
     def _checkpoint(self, force: bool = False) -> None:
         """Write the checkpoint when due (every interval, or before ids run past it)."""
@@ -257,6 +274,8 @@ class TrackerService:
         with self.node.counters.timed("step"):
             for item in self._batches.drain(timeout=timeout_s):
                 batch = self._admit(item, time.time())
+                if batch is not None and self._pending is not None:
+                    self._resume_tracks(batch)
                 if batch is not None:
                     results += self.pipeline.push(batch, item.received)
             results += self.pipeline.poll(time.time())

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from openptrack_py.config import TrackerConfig
 from openptrack_py.tracking import build_tracker
-from openptrack_py.tracking.checkpoint import ID_BLOCK, CheckpointStore, resume
+from openptrack_py.tracking.checkpoint import ID_BLOCK, CheckpointStore, resume_ids, resume_tracks
 from tests.tracking.helpers import FRAME, T0, det, make_batch
 
 STILL = {"confirm_min_displacement_m": 0.0, "confirm_min_age_s": 0.0}
@@ -42,8 +42,9 @@ def test_ids_continue_above_the_reservation_after_a_crash(tmp_path: Path) -> Non
         first.step(make_batch(T0 + 1 + k, [det(9.0 + 3 * (k % 2), 9.0)]))
     assert first.max_id > 1
     second = build_tracker(TrackerConfig(**STILL))
-    resume(second, CheckpointStore(store.path).load(), 1e18, 30.0, "world")  # too old
-    assert len(second.table) == 0  # only the ids resume
+    ckpt = CheckpointStore(store.path).load()
+    assert ckpt is not None
+    resume_ids(second, ckpt)  # an old checkpoint: only the ids resume
     _walker(second, T0 + 100, 10)
     assert second.table.ids.min() > first.max_id
 
@@ -58,7 +59,8 @@ def test_a_recent_checkpoint_resumes_its_tracks_with_their_ids(tmp_path: Path) -
     ckpt = CheckpointStore(store.path).load()
     assert ckpt is not None
     second = build_tracker(TrackerConfig(**STILL))
-    assert resume(second, ckpt, ckpt.saved_at + 3.0, 30.0, "world") == len(first.table)
+    resume_ids(second, ckpt)
+    assert resume_tracks(second, ckpt, last + 3.0) == len(first.table)
     # 3 s later the person, who walked on, is seen again: same id
     x = 1.0 + 0.8 * (last + 3.0 - T0)
     out = None
