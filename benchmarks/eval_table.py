@@ -2,14 +2,15 @@
 
 Writes the head of ``docs/evaluation.md`` and prints the rows as JSON lines::
 
-    python -m benchmarks.eval_table            # about 45 minutes on 2 cores
+    python -m benchmarks.eval_table > rows.jsonl       # about an hour on 2 cores
     python -m benchmarks.eval_table --jobs 1 --out -   # print the Markdown instead
+    python -m benchmarks.eval_table --rows rows.jsonl  # the document from saved rows
 
 Three blocks, each row the same as ``openptrack eval --scenario NAME --seed N
 --profile P [--set ...]``:
 
 * the default tracker on the ``realistic`` profile (the default of ``openptrack eval``),
-  seeds 7, 8 and 9, which were never looked at while the tracker was developed;
+  seeds 21, 22 and 23, which were never run while the tracker was developed;
 * the same runs with robust track management off (``ROBUSTNESS_OFF``): what it buys;
 * the default tracker on the ``ideal`` profile, seeds 0, 1 and 2, next to the figures the
   tracker had before robust track management (:data:`BEFORE_IDEAL`, the committed table
@@ -38,7 +39,7 @@ KEPT_SECTION = "## Is the simulator honest?"
 
 COLUMNS = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "duplicates", "fp", "fn"]
 SUMMARY = ["mota", "motp", "idf1", "id_switches", "duplicates", "fp", "fn"]
-REALISTIC_SEEDS = (7, 8, 9)
+REALISTIC_SEEDS = (21, 22, 23)
 IDEAL_SEEDS = (0, 1, 2)
 BEFORE_IDEAL = {
     "crowd": (0.998, 0.999),
@@ -90,12 +91,41 @@ def _ideal_against_before(rows: list[dict[str, object]]) -> list[dict[str, objec
     return out
 
 
+TARGETS = ("crowd", "installation", "classroom")
+"""Scenarios with targets on ``realistic``: MOTA >= 0.90, IDF1 >= 0.85, no duplicates."""
+
+
+def _against_targets(rows: list[dict[str, object]]) -> list[dict[str, object]]:
+    out = []
+    for name in TARGETS:
+        mine = [r for r in rows if r["scenario"] == name]
+        if not mine:
+            continue
+        worst_mota = min(float(r["mota"]) for r in mine)  # type: ignore[arg-type]
+        worst_idf1 = min(float(r["idf1"]) for r in mine)  # type: ignore[arg-type]
+        dups = sum(int(r["duplicates"]) for r in mine)  # type: ignore[call-overload]
+        out.append(
+            {
+                "scenario": name,
+                "worst mota": worst_mota,
+                "mota >= 0.90": "yes" if worst_mota >= 0.90 else "no",
+                "worst idf1": worst_idf1,
+                "idf1 >= 0.85": "yes" if worst_idf1 >= 0.85 else "no",
+                "duplicates": dups,
+                "none": "yes" if dups == 0 else "no",
+            }
+        )
+    return out
+
+
 def document(rows: list[dict[str, object]]) -> str:
     realistic = [r for r in rows if r["block"] == "robust"]
     off = [r for r in rows if r["block"] == "off"]
     ideal = [r for r in rows if r["block"] == "ideal"]
     scenarios = "\n".join(f"| `{k}` | {v} |" for k, v in describe_scenarios().items())
     before_cols = ["scenario", "mota", "mota before", "change", "idf1", "idf1 before", "fn"]
+    target_cols = ["scenario", "worst mota", "mota >= 0.90", "worst idf1", "idf1 >= 0.85"]
+    target_cols += ["duplicates", "none"]
     return f"""# Evaluation
 
 Every scenario of the simulator, three seeds each, at its full default length, scored on
@@ -111,10 +141,15 @@ with `python -m benchmarks.eval_table`; each row is `openptrack eval --scenario 
 
 ## The default tracker on the `realistic` profile
 
-Seeds 7, 8 and 9: none of them was run while the tracker was developed (development used
-seeds 100-103 and the robustness sweep's own).
+Seeds 21, 22 and 23: none of them was run while the tracker was developed (development
+used seeds 3-7 and 100-103; the robustness sweep uses 11 and 12).
 
 {format_markdown(_means(realistic), ["scenario", *SUMMARY])}
+
+Against the targets (every seed: MOTA at least 0.90, IDF1 at least 0.85, no second track
+following a person for more than a second):
+
+{format_markdown(_against_targets(realistic), target_cols)}
 
 ## Robust track management off, same runs
 
@@ -126,9 +161,14 @@ alignment, birth gate, confirmation on evidence, merging and the rest (see the R
 ## Regression check: the `ideal` profile
 
 Seeds 0, 1 and 2, against the means this table had before robust track management.
-Where MOTA fell it is almost all misses in the first seconds: a track is now confirmed
-once its person has moved, and people stand still when these scenes start (a static
-false positive and a person standing from the start cannot be told apart).
+Where MOTA fell, robust track management asks for evidence the kind simulator does not
+need: a person standing still when a scene starts is confirmed only once steadily
+detected (about a second) or once they move, so a person standing where the sensor
+sees them in a third of frames (`distance`: 1.2 m in front of the sensor, where the
+body is below the image) waits until they walk; and in the dense `stress` hall a person
+whose sensors are blocked by others for a while loses support, so their track is not
+kept alive by occasional detections (the rule that stops a track living on a static
+false positive).
 
 {format_markdown(_ideal_against_before(ideal), before_cols)}
 
@@ -148,6 +188,7 @@ its identity switches happen there.
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--rows", type=Path, help="JSON lines of an earlier run: no new runs")
     parser.add_argument(
         "--out", default=str(Path(__file__).resolve().parent.parent / "docs" / "evaluation.md")
     )
@@ -164,11 +205,17 @@ def main() -> None:
     ]
     # longest first, so the pool stays busy
     jobs.sort(key=lambda j: j[1] != "stress")
-    with ProcessPoolExecutor(args.jobs) as pool:
-        rows = []
-        for row in pool.map(run, jobs):
-            rows.append(row)
-            print(json.dumps(row), flush=True)
+    rows = []
+    if args.rows is not None:
+        for line in args.rows.read_text().splitlines():
+            if line.startswith("{"):
+                rows.append(json.loads(line))
+    else:
+        with ProcessPoolExecutor(args.jobs) as pool:
+            for i, row in enumerate(pool.map(run, jobs), 1):
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+                print(f"eval_table: {i}/{len(jobs)}", file=sys.stderr, flush=True)
     order = {"robust": 0, "off": 1, "ideal": 2}
     rows.sort(
         key=lambda r: (order[str(r["block"])], SCENARIO_NAMES.index(str(r["scenario"])), r["seed"])
