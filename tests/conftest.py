@@ -95,6 +95,15 @@ def spawn(tmp_path: Path) -> Iterator[Callable[..., subprocess.Popen[str]]]:
             proc.wait()
 
 
+def start_tracker(net: Path, endpoint: str, log: Path) -> subprocess.Popen[str]:
+    """The tracker node of network file ``net`` as a real process listening on ``endpoint``."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "openptrack_py.nodes.tracker", "-c", str(net), "-l", endpoint,
+         "--no-multicast-scouting"],
+        stdout=log.open("w"), stderr=subprocess.STDOUT, text=True, env=python_env(), cwd=ROOT,
+    )  # fmt: skip
+
+
 def wait_for(predicate: Callable[[], bool], timeout_s: float = 15.0, what: str = "") -> None:
     """Poll ``predicate`` until it holds; fail the test after ``timeout_s``."""
     deadline = time.monotonic() + timeout_s

@@ -13,7 +13,6 @@ import math
 import re
 import signal
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -33,7 +32,7 @@ from openptrack_py.messages import (
 from openptrack_py.messages.codec import decode_node_stats
 from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
-from tests.conftest import ROOT, free_port, python_env, wait_for
+from tests.conftest import free_port, start_tracker, wait_for
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
 
@@ -126,11 +125,7 @@ def rig(tmp_path: Path) -> Iterator[Rig]:
     net = tmp_path / "net.yaml"
     net.write_text(NETWORK)
     log = tmp_path / "tracker.log"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "openptrack_py.nodes.tracker", "-c", str(net), "-l", endpoint,
-         "--no-multicast-scouting"],
-        stdout=log.open("w"), stderr=subprocess.STDOUT, text=True, env=python_env(), cwd=ROOT,
-    )  # fmt: skip
+    proc = start_tracker(net, endpoint, log)
     bus = ZenohBus(ZenohConfig(hub=None, connect=[endpoint], listen=[], multicast_scouting=False))
     rig = Rig(proc, log, bus)
     bus.subscribe("opt/default/tracks", rig.on_tracks)

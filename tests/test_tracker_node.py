@@ -23,7 +23,7 @@ from openptrack_py.messages import (
 )
 from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
-from tests.conftest import ROOT, free_port, python_env, wait_for
+from tests.conftest import ROOT, free_port, python_env, start_tracker, wait_for
 
 pytestmark = pytest.mark.zenoh
 
@@ -65,11 +65,7 @@ def tracker_node(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], Client
     net = tmp_path / "net.yaml"
     net.write_text("site: default\nzenoh: {hub: null}\ntracker: {reorder_window_s: 0.0}\n")
     log = tmp_path / "tracker.log"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "openptrack_py.nodes.tracker", "-c", str(net), "-l", endpoint,
-         "--no-multicast-scouting"],
-        stdout=log.open("w"), stderr=subprocess.STDOUT, text=True, env=python_env(), cwd=ROOT,
-    )  # fmt: skip
+    proc = start_tracker(net, endpoint, log)
     client = Client(endpoint)
     try:
         assert wait_for_subscribers(client.pub, timeout_s=30), log.read_text()
