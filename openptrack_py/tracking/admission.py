@@ -72,6 +72,15 @@ class _SensorState:
     clock: float | None = None
 
 
+def cap_detections(batch: DetectionBatch, cap: int) -> tuple[DetectionBatch, int]:
+    """The batch with at most its ``cap`` most confident detections, and how many went."""
+    excess = len(batch.detections) - cap
+    if excess <= 0:
+        return batch, 0
+    keep = sorted(batch.detections, key=lambda d: -d.confidence)[:cap]
+    return replace(batch, detections=tuple(keep)), excess
+
+
 class Admission:
     """Admits or refuses each detection batch before it reaches the tracking pipeline.
 
@@ -142,11 +151,8 @@ class Admission:
             return self._refuse("rate_limited")
         if not self._plausible(state, arrival - batch.stamp):
             return self._refuse("bad_stamp")
-        cap = state.limits.max_detections
-        if len(batch.detections) > cap:
-            self.counters["detections_capped"] += len(batch.detections) - cap
-            keep = sorted(batch.detections, key=lambda d: -d.confidence)[:cap]
-            batch = replace(batch, detections=tuple(keep))
+        batch, excess = cap_detections(batch, state.limits.max_detections)
+        self.counters["detections_capped"] += excess
         return batch
 
     def sensors(self) -> list[str]:

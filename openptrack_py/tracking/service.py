@@ -22,7 +22,6 @@ parameters in force. An invalid request changes nothing and never stops the node
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 from openptrack_py.config import NetworkConfig, TrackerConfig, validate_config
 from openptrack_py.errors import ConfigError
@@ -36,7 +35,7 @@ from openptrack_py.messages.config_update import ConfigAck, ConfigUpdate
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.runtime.node import Inbox, Node, Received
 from openptrack_py.sensor_types import SENSOR_TYPES
-from openptrack_py.tracking.admission import Admission, SensorLimits
+from openptrack_py.tracking.admission import Admission, SensorLimits, cap_detections
 from openptrack_py.tracking.checkpoint import (
     Checkpoint,
     CheckpointStore,
@@ -186,12 +185,9 @@ class TrackerService:
 
     def _decode_capped(self, payload: bytes) -> DetectionBatch:
         """Decode a batch, keeping at most the most confident detections any sensor may send."""
-        batch = decode_detection_batch(payload)
-        excess = len(batch.detections) - self._max_detections
-        if excess > 0:
+        batch, excess = cap_detections(decode_detection_batch(payload), self._max_detections)
+        if excess:
             self.node.counters.inc("detections_capped", excess)
-            keep = sorted(batch.detections, key=lambda d: -d.confidence)[: self._max_detections]
-            batch = replace(batch, detections=tuple(keep))
         return batch
 
     # ------------------------------------------------------------- reconfiguration
