@@ -8,7 +8,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.bootstrapped
-EXTRAS ?= dev,osc,web,sensor
+EXTRAS ?= dev,osc,web,security,sensor
 DEMO_SECONDS ?=
 RGBD ?=
 DEMO_ARGS ?= $(if $(RGBD),--set sim.sensor_model=rgbd --set detector.rate_hz=15)

@@ -14,7 +14,7 @@ from tests.conftest import ROOT, python_env
 
 SUBCOMMANDS = [
     "launch", "node", "status", "echo", "config", "eval", "scenarios", "show-config",
-    "record-sensor", "detect", "eval-detector",
+    "record-sensor", "detect", "eval-detector", "certs",
 ]  # fmt: skip
 
 

@@ -70,7 +70,8 @@ def test_demo_values_are_read_not_defaulted() -> None:
     assert config.sim.scenario == "installation"
     multi = load_network(MULTI_HOST)
     assert multi.site == "gallery"
-    assert multi.zenoh.hub == "tcp/192.168.1.10:7447"
+    assert multi.zenoh.hub == "tls/192.168.1.10:7447"
+    assert multi.security is not None and multi.security.operators == ["operator"]
     assert multi.sensor("south").type == "realsense"
     assert multi.sim is None
 
@@ -93,7 +94,7 @@ def test_no_file_gives_defaults() -> None:
         (
             "sensros=[]",
             "sensros: unknown key; did you mean 'sensors'? (allowed: detector, outputs, "
-            "recorder, sensors, sim, site, stats_interval_s, tracker, zenoh)",
+            "recorder, security, sensors, sim, site, stats_interval_s, tracker, zenoh)",
         ),
         (
             "sim.sceanrio=crowd",

@@ -8,13 +8,14 @@ package above it; packages on one layer do not import each other):
 2. ``geometry``, ``messages``
 
 3. ``transport``
-4. ``runtime``
-5. ``detection``, ``tracking``
-6. ``output``, ``recorder``
-7. ``sim``
-8. ``eval``
-9. ``launch``, ``nodes`` (the node entry points, shipped as ``openptrack_py.nodes``)
-10. ``cli``
+4. ``security`` (a secured session's settings, from the network file and the keys)
+5. ``runtime``
+6. ``detection``, ``tracking``
+7. ``output``, ``recorder``
+8. ``sim``
+9. ``eval``
+10. ``launch``, ``nodes`` (the node entry points, shipped as ``openptrack_py.nodes``)
+11. ``cli``
 
 Every import counts, including the ones inside functions (a lazy import is still a
 dependency); only imports under ``if TYPE_CHECKING:`` are ignored.
@@ -37,17 +38,18 @@ LAYERS: dict[str, int] = {
     "geometry": 2,
     "messages": 2,
     "transport": 3,
-    "runtime": 4,
-    "detection": 5,
-    "tracking": 5,
-    "output": 6,
-    "recorder": 6,
-    "sim": 7,
-    "eval": 8,
-    "launch": 9,
-    "nodes": 9,
-    "presets": 9,
-    "cli": 10,
+    "security": 4,
+    "runtime": 5,
+    "detection": 6,
+    "tracking": 6,
+    "output": 7,
+    "recorder": 7,
+    "sim": 8,
+    "eval": 9,
+    "launch": 10,
+    "nodes": 10,
+    "presets": 10,
+    "cli": 11,
 }
 MAX_FILE_LINES = 500
 MAX_FUNCTION_LINES = 80

@@ -105,7 +105,7 @@ _TRAMPOLINE = (  # copies above 9 first, so that neither end can overwrite the o
 class Chromium:
     """Headless Chromium driven over ``--remote-debugging-pipe``."""
 
-    def __init__(self, url: str, profile: Path, log: Path) -> None:
+    def __init__(self, url: str, profile: Path, log: Path, *flags: str) -> None:
         assert CHROMIUM is not None
         cmd_r, self._cmd_w = os.pipe()
         self._resp_r, resp_w = os.pipe()
@@ -113,7 +113,7 @@ class Chromium:
         # a tiny Python trampoline moves our pipe ends to the fds 3 and 4 Chromium expects
         self.proc = subprocess.Popen(
             [sys.executable, "-c", _TRAMPOLINE, str(cmd_r), str(resp_w), CHROMIUM,
-             *CHROMIUM_FLAGS, f"--user-data-dir={profile}", url],
+             *CHROMIUM_FLAGS, *flags, f"--user-data-dir={profile}", url],
             pass_fds=(cmd_r, resp_w), stdin=subprocess.DEVNULL, stdout=self._log,
             stderr=subprocess.STDOUT,
         )  # fmt: skip
@@ -615,4 +615,128 @@ def test_a_client_that_never_reads_is_dropped_and_the_others_get_every_frame() -
         wait_for(lambda: srv.clients == 0, 10, "the normal client to be forgotten")
     finally:
         slow.close()
+        srv.close()
+
+
+# ================================================================ token and TLS
+
+TOKEN = "correct-horse-battery-staple-42"
+
+
+def _secured(tmp_path: Path, *, tls: bool) -> tuple[NetworkConfig, Path | None]:
+    """The demo network's web view with a token, and with TLS (the site's certificates)."""
+    token_file = tmp_path / "web_token"
+    token_file.write_text(TOKEN + "\n")
+    web: dict[str, Any] = {"room": [0, 0, 8, 6], "token_file": str(token_file)}
+    ca = None
+    if tls:
+        from openptrack_py.security import pki
+
+        certs = tmp_path / "certs"
+        ca = pki.create_authority(certs, "default")
+        ident = pki.issue(certs, "output")
+        web |= {"tls_certificate": str(ident.certificate), "tls_private_key": str(ident.key)}
+    return _demo_network(**web), ca
+
+
+def test_without_the_token_no_data_is_served(tmp_path: Path) -> None:
+    network, _ = _secured(tmp_path, tls=False)
+    cfg = network.outputs[0].web
+    assert cfg is not None
+    counters = Counters("output")
+    srv = WebServer(cfg, scene(network, cfg), counters)
+    try:
+        assert _get(srv.port, "/")[0] == _get(srv.port, "/view.js")[0] == 200  # no data there
+        for path in ("/scene.json", "/scene.json?token=wrong", f"/scene.json?token={TOKEN}x"):
+            assert _get(srv.port, path)[0] == 401, path
+        for query in ("", "?token=", f"?token={TOKEN[:-1]}"):
+            with pytest.raises(Exception, match="401"):
+                ws_sync_connect(f"ws://127.0.0.1:{srv.port}/ws{query}", open_timeout=5).close()
+        assert _get(srv.port, f"/scene.json?token={TOKEN}")[0] == 200
+        conn = http.client.HTTPConnection("127.0.0.1", srv.port, timeout=10)
+        conn.request("GET", "/scene.json", headers={"Authorization": f"Bearer {TOKEN}"})
+        assert conn.getresponse().status == 200
+        conn.close()
+        with ws_sync_connect(f"ws://127.0.0.1:{srv.port}/ws?token={TOKEN}") as ws:
+            assert json.loads(ws.recv(timeout=5))["type"] == "scene"
+        assert counters.get("web.refused") == 6
+    finally:
+        srv.close()
+
+
+def test_a_short_or_missing_token_file_is_a_config_error(tmp_path: Path) -> None:
+    from openptrack_py.errors import ConfigError
+
+    short = tmp_path / "short"
+    short.write_text("abc\n")
+    with pytest.raises(ConfigError, match=r"token_file.*at least 16"):
+        WebConfig(token_file=short).token()
+    with pytest.raises(ConfigError, match="token_file: cannot read"):
+        WebConfig(token_file=tmp_path / "none").token()
+    with pytest.raises(Exception, match="give both or neither"):
+        WebConfig(tls_certificate=tmp_path / "c.pem")
+
+
+def test_tls_serves_https_and_wss_to_clients_that_trust_the_site(tmp_path: Path) -> None:
+    import ssl
+
+    network, ca = _secured(tmp_path, tls=True)
+    cfg = network.outputs[0].web
+    assert cfg is not None and ca is not None
+    srv = WebServer(cfg, scene(network, cfg), Counters("output"))
+    trusting = ssl.create_default_context(cafile=str(ca))
+    try:
+        conn = http.client.HTTPSConnection("localhost", srv.port, timeout=10, context=trusting)
+        conn.request("GET", f"/?token={TOKEN}")
+        assert conn.getresponse().status == 200
+        conn.close()
+        with ws_sync_connect(f"wss://localhost:{srv.port}/ws?token={TOKEN}", ssl=trusting) as ws:
+            assert json.loads(ws.recv(timeout=5))["type"] == "scene"
+        with pytest.raises(ssl.SSLError):  # a client that does not trust the site's authority
+            conn = http.client.HTTPSConnection(
+                "localhost", srv.port, timeout=10, context=ssl.create_default_context()
+            )
+            conn.request("GET", f"/?token={TOKEN}")
+        with pytest.raises((http.client.HTTPException, ConnectionError, OSError)):
+            _get(srv.port, f"/?token={TOKEN}")  # plain HTTP is not spoken
+    finally:
+        srv.close()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed")
+def test_headless_chromium_views_the_secured_page_with_its_token(tmp_path: Path) -> None:
+    network, _ = _secured(tmp_path, tls=True)
+    cfg = network.outputs[0].web
+    assert cfg is not None
+    srv = WebServer(cfg, scene(network, cfg), Counters("output"))
+    stop = threading.Event()
+
+    def frames() -> None:
+        seq = 0
+        while not stop.is_set():
+            srv.broadcast(frame_message(_batch(seq, (2.0 + 0.01 * seq, 3.0))))
+            seq += 1
+            time.sleep(0.05)
+
+    feeder = threading.Thread(target=frames, daemon=True)
+    feeder.start()
+    url = f"https://localhost:{srv.port}/?token={TOKEN}"
+    # the site's own authority is not in Chromium's store: trust it for this profile only
+    browser = Chromium(
+        url, tmp_path / "profile", tmp_path / "chromium.log", "--ignore-certificate-errors"
+    )
+    try:
+        browser.attach_to_page(url)
+
+        def drawing() -> bool:
+            text = browser.evaluate(SNAPSHOT_JS)
+            snap = json.loads(text) if text else None
+            return bool(snap and snap["status"] == "live" and snap["state"].get("frames", 0) > 2)
+
+        wait_for(drawing, 30, "the secured page drawing frames")
+    finally:
+        browser.close()
+        stop.set()
+        feeder.join(2)
         srv.close()

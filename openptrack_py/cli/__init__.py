@@ -13,6 +13,7 @@ Subcommands::
     openptrack record-sensor SOURCE OUTDIR                   record a depth source to a folder
     openptrack detect INPUT                                  detect people in depth frames
     openptrack eval-detector --scenario NAME                 score the detector on renderings
+    openptrack certs init|issue|list FOLDER                  certificates of a secured site
 
 ``openptrack <subcommand> --help`` explains each. Each subcommand is one module of this
 package with ``add_parser(subparsers)`` and ``run(args) -> int``; modules needed only to run a
@@ -27,6 +28,7 @@ from collections.abc import Sequence
 
 from openptrack_py import __version__
 from openptrack_py.cli import (
+    certs,
     configure,
     detect,
     echo,
@@ -58,6 +60,7 @@ COMMANDS = (
     record_sensor,
     detect,
     eval_detector,
+    certs,
 )
 """The subcommand modules, in the order ``openptrack --help`` lists them."""
 

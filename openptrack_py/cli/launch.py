@@ -58,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     """Start the nodes, supervise them until they end or a signal asks; return the status."""
     from openptrack_py.launch import Supervisor, host_matches, plan_nodes, this_host
     from openptrack_py.runtime.status import StatusBoard
+    from openptrack_py.security.policy import LAUNCHER, session_settings
     from openptrack_py.transport.zenoh_bus import ZenohBus
 
     path = resolve_config_path(args.network)
@@ -71,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     hub = None
     if cfg.zenoh.hub is not None and host_matches(cfg.zenoh.hub_host, host):
         try:
-            hub = ZenohBus(cfg.zenoh, as_hub=True)
+            hub = ZenohBus(cfg.zenoh, as_hub=True, settings=session_settings(cfg, LAUNCHER))
         except ConfigError as exc:
             print(
                 f"openptrack launch: cannot open the hub {cfg.zenoh.hub}: {exc}", file=sys.stderr

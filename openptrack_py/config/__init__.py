@@ -12,9 +12,9 @@ naming the key path, the allowed values and the value received::
 
 The package has one module per section, each a pydantic model on
 :class:`~openptrack_py.config.base.StrictModel`: ``zenoh``, ``sensors``, ``sim``,
-``detector``, ``tracker``, ``output``, ``recorder``, and ``network`` (the whole file);
-``base`` holds what they share and ``loading`` reads files, applies overrides and turns
-validation errors into those messages. Everything is importable from here::
+``detector``, ``tracker``, ``output``, ``recorder``, ``security``, and ``network`` (the
+whole file); ``base`` holds what they share and ``loading`` reads files, applies
+overrides and turns validation errors into those messages. Everything is importable from here::
 
     from openptrack_py.config import NetworkConfig, load_network
 """
@@ -45,6 +45,7 @@ from openptrack_py.config.output import (
     WebConfig,
 )
 from openptrack_py.config.recorder import RecorderConfig
+from openptrack_py.config.security import SecurityConfig
 from openptrack_py.config.sensors import Pose, PoseError, SensorConfig
 from openptrack_py.config.sim import ScenarioName, SimConfig
 from openptrack_py.config.tracker import ROBUSTNESS_OFF, TrackerConfig
@@ -67,6 +68,7 @@ __all__ = [
     "PoseError",
     "RecorderConfig",
     "ScenarioName",
+    "SecurityConfig",
     "SensorConfig",
     "SimConfig",
     "SmootherConfig",

@@ -8,6 +8,7 @@ from openptrack_py.config.base import Name, StrictModel
 from openptrack_py.config.detector import DetectorConfig
 from openptrack_py.config.output import OutputConfig
 from openptrack_py.config.recorder import RecorderConfig
+from openptrack_py.config.security import SecurityConfig
 from openptrack_py.config.sensors import SensorConfig
 from openptrack_py.config.sim import SimConfig
 from openptrack_py.config.tracker import TrackerConfig
@@ -38,6 +39,9 @@ class NetworkConfig(StrictModel):
         Settings of every detector node (sensor machines, and ``rgbd`` simulation).
     stats_interval_s : float
         How often every node publishes its counters.
+    security : SecurityConfig, optional
+        Mutual TLS and access control for every session; every Zenoh endpoint must then
+        be ``tls/``.
     """
 
     site: Name = "default"
@@ -49,6 +53,7 @@ class NetworkConfig(StrictModel):
     recorder: RecorderConfig | None = None
     detector: DetectorConfig = Field(default_factory=DetectorConfig)
     stats_interval_s: float = Field(2.0, gt=0.0, le=3600.0)
+    security: SecurityConfig | None = None
 
     @model_validator(mode="after")
     def _consistent(self) -> NetworkConfig:
@@ -71,6 +76,18 @@ class NetworkConfig(StrictModel):
                 raise ValueError(
                     "sim.sensor_model 'rgbd' needs sensors with source 'sim' to render "
                     "(none listed)"
+                )
+        if self.security is not None:
+            named = [("zenoh.hub", self.zenoh.hub)] if self.zenoh.hub else []
+            named += [(f"zenoh.listen.{i}", e) for i, e in enumerate(self.zenoh.listen)]
+            named += [(f"zenoh.connect.{i}", e) for i, e in enumerate(self.zenoh.connect)]
+            plain = [
+                f"{key} ({endpoint})" for key, endpoint in named if not endpoint.startswith("tls/")
+            ]
+            if plain:
+                raise ValueError(
+                    "with 'security' every Zenoh endpoint must be tls/...; not: "
+                    + ", ".join(plain)
                 )
         if simulated and self.sim is None:
             raise ValueError(

@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from openptrack_py.config.base import Name, StrictModel
+from openptrack_py.errors import ConfigError
+
+MIN_TOKEN_CHARS = 16
+"""Shortest web access token accepted."""
 
 
 class SmootherConfig(StrictModel):
@@ -111,12 +116,56 @@ class WebConfig(StrictModel):
         ``[x0, y0, x1, y1]`` drawn as the room; the sensors' reach when omitted.
     max_queue : int
         Frames a slow client may lag behind before it is dropped.
+    token_file : Path, optional
+        A file holding an access token (its first line). When set, the stream and the
+        scene are served only to requests that carry it, as ``?token=...`` in the address
+        (what a browser can do) or an ``Authorization: Bearer`` header; the page passes
+        its own ``?token=`` on.
+    tls_certificate, tls_private_key : Path, optional
+        Serve HTTPS and ``wss://`` with this certificate and key (PEM), e.g. the output
+        node's own from ``openptrack certs``. Both or neither.
     """
 
     host: str = "127.0.0.1"
     port: int = Field(8080, ge=0, le=65535)
     room: tuple[float, float, float, float] | None = None
     max_queue: int = Field(32, ge=1, le=10_000)
+    token_file: Path | None = None
+    tls_certificate: Path | None = None
+    tls_private_key: Path | None = None
+
+    @model_validator(mode="after")
+    def _tls_pair(self) -> WebConfig:
+        if (self.tls_certificate is None) != (self.tls_private_key is None):
+            raise ValueError(
+                "tls_certificate and tls_private_key go together: give both or neither"
+            )
+        return self
+
+    def token(self) -> str | None:
+        """The access token, read from :attr:`token_file`; ``None`` when there is none.
+
+        Raises
+        ------
+        ConfigError
+            If the file cannot be read or holds no token of at least 16 characters.
+        """
+        if self.token_file is None:
+            return None
+        try:
+            lines = self.token_file.expanduser().read_text().splitlines()
+        except OSError as exc:
+            raise ConfigError(
+                f"outputs.web.token_file: cannot read {self.token_file}: {exc}"
+            ) from None
+        token = lines[0].strip() if lines else ""
+        if len(token) < MIN_TOKEN_CHARS:
+            raise ConfigError(
+                f"outputs.web.token_file: {self.token_file} must start with a token of at least "
+                f"{MIN_TOKEN_CHARS} characters (e.g. python -c 'import secrets; "
+                "print(secrets.token_urlsafe())')"
+            )
+        return token
 
     @field_validator("room")
     @classmethod

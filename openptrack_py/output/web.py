@@ -16,15 +16,24 @@ messages, which any browser sketch (p5.js...) can read:
 Each client has a queue of ``max_queue`` frames; a client that falls that far behind is
 disconnected (close code 1013, "try again later") rather than buffered without bound,
 and counted as ``web.slow_clients``.
+
+With ``token_file`` set, the data (the stream and ``/scene.json``) is served only to
+requests that carry the token, as ``?token=...`` or ``Authorization: Bearer ...``; the
+page (the same for everyone) passes its own ``?token=`` on to the stream. Others get
+401 and are counted as ``web.refused``. With ``tls_certificate`` and ``tls_private_key``
+the server speaks HTTPS and ``wss://``.
 """
 
 from __future__ import annotations
 
 import asyncio
+import hmac
 import importlib.resources
 import logging
+import ssl
 import threading
 from typing import Any
+from urllib.parse import parse_qs, urlsplit
 
 import orjson
 
@@ -45,6 +54,8 @@ try:
 except ImportError:  # pragma: no cover - exercised only without the [web] extra
     serve = None  # type: ignore[assignment]
 
+PRIVATE_PATHS = ("/ws", "/scene.json")
+"""What needs the token: the data. The page and its script are the same for everyone."""
 _CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8"}
 
 
@@ -98,6 +109,28 @@ def _static(name: str) -> bytes:
     return importlib.resources.files("openptrack_py.output").joinpath("web", name).read_bytes()
 
 
+def _server_tls(cfg: WebConfig) -> ssl.SSLContext | None:
+    """The server's TLS context, or ``None`` without a certificate.
+
+    Raises
+    ------
+    ConfigError
+        If the certificate or key cannot be loaded.
+    """
+    if cfg.tls_certificate is None or cfg.tls_private_key is None:
+        return None
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.minimum_version = ssl.TLSVersion.TLSv1_2
+    try:
+        context.load_cert_chain(cfg.tls_certificate.expanduser(), cfg.tls_private_key.expanduser())
+    except (OSError, ssl.SSLError) as exc:
+        raise ConfigError(
+            f"outputs.web.tls_certificate: cannot load {cfg.tls_certificate} with "
+            f"{cfg.tls_private_key}: {exc}"
+        ) from None
+    return context
+
+
 class WebServer:
     """Serves the page and the stream from its own thread and event loop.
 
@@ -122,6 +155,8 @@ class WebServer:
             raise ConfigError("outputs.web: the web view needs pip install 'openptrack_py[web]'")
         self.cfg = cfg
         self.counters = counters
+        self._token = cfg.token()
+        self._ssl = _server_tls(cfg)
         self._scene = orjson.dumps(scene_message)
         self._clients: dict[ServerConnection, asyncio.Queue[str]] = {}
         self._closing: set[asyncio.Task[None]] = set()
@@ -142,8 +177,20 @@ class WebServer:
 
     # ------------------------------------------------------------- event loop side
 
+    def _authorised(self, request: Any) -> bool:
+        if self._token is None:
+            return True
+        offered = parse_qs(urlsplit(request.path).query).get("token", [""])[0]
+        header = request.headers.get("Authorization", "")
+        if header.startswith("Bearer "):
+            offered = header[len("Bearer ") :].strip()
+        return hmac.compare_digest(offered.encode(), self._token.encode())
+
     def _http(self, connection: ServerConnection, request: Any) -> Any:
         path = request.path.split("?", 1)[0]
+        if path in PRIVATE_PATHS and not self._authorised(request):
+            self.counters.inc("web.refused")
+            return connection.respond(401, "a valid token is needed: ?token=...\n")
         if path == "/ws":
             return None  # go on with the WebSocket handshake
         if path == "/scene.json":
@@ -197,7 +244,11 @@ class WebServer:
     async def _main(self) -> None:
         try:
             server = await serve(
-                self._client, self.cfg.host, self.cfg.port, process_request=self._http
+                self._client,
+                self.cfg.host,
+                self.cfg.port,
+                process_request=self._http,
+                ssl=self._ssl,
             )
         except OSError as exc:
             self._error = exc

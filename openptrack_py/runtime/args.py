@@ -10,6 +10,7 @@ from pathlib import Path
 from openptrack_py.config import NetworkConfig, ZenohConfig, load_network
 from openptrack_py.errors import ConfigError
 from openptrack_py.runtime.logs import LOG_LEVELS
+from openptrack_py.security.policy import OPERATOR, session_settings
 from openptrack_py.transport.zenoh_bus import ZenohBus, endpoints_from_flags
 
 
@@ -86,6 +87,14 @@ def add_common_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="discover peers by UDP multicast (off unless the network file says otherwise)",
     )
+    zenoh.add_argument(
+        "--identity",
+        dest="identity",
+        metavar="NAME",
+        default=None,
+        help="certificate to authenticate with when the network has a 'security' section "
+        "(default: the node name; 'operator' for command-line tools)",
+    )
     logs = parser.add_argument_group("logging")
     logs.add_argument("--log-level", dest="log_level", choices=LOG_LEVELS, default="info")
     logs.add_argument("--log-format", dest="log_format", choices=("text", "json"), default="text")
@@ -116,6 +125,19 @@ def zenoh_from_args(cfg: ZenohConfig, args: argparse.Namespace) -> ZenohConfig:
     return ZenohConfig.model_validate({**cfg.model_dump(), **update})
 
 
-def bus_from_args(cfg: NetworkConfig, args: argparse.Namespace) -> ZenohBus:
-    """Open the Zenoh session described by the network file and the flags."""
-    return ZenohBus(zenoh_from_args(cfg.zenoh, args))
+def bus_from_args(
+    cfg: NetworkConfig, args: argparse.Namespace, identity: str = OPERATOR
+) -> ZenohBus:
+    """Open the Zenoh session described by the network file and the flags.
+
+    Parameters
+    ----------
+    cfg : NetworkConfig
+        The network file.
+    args : argparse.Namespace
+        Parsed flags (:func:`add_common_arguments`).
+    identity : str
+        Certificate used when the network is secured, unless ``--identity`` names another.
+    """
+    settings = session_settings(cfg, getattr(args, "identity", None) or identity)
+    return ZenohBus(zenoh_from_args(cfg.zenoh, args), settings=settings)

@@ -43,7 +43,7 @@ def run_node(
     try:
         cfg = network_from_args(args)
         with (
-            bus_from_args(cfg, args) as bus,
+            bus_from_args(cfg, args, identity=name) as bus,
             Node(name, bus, site=cfg.site, stats_interval_s=cfg.stats_interval_s) as node,
         ):
             node.install_signal_handlers()

@@ -14,7 +14,8 @@ import logging
 import socket
 import threading
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import zenoh
 
@@ -49,6 +50,7 @@ def build_zenoh_config(
     listen: Sequence[str] | None = None,
     connect: Sequence[str] | None = None,
     as_hub: bool = False,
+    settings: Mapping[str, Any] | None = None,
 ) -> zenoh.Config:
     """Translate a :class:`~openptrack_py.config.ZenohConfig` into a ``zenoh.Config``.
 
@@ -60,6 +62,9 @@ def build_zenoh_config(
         Replace ``cfg.listen`` / ``cfg.connect`` (command-line ``-l`` / ``-e``).
     as_hub : bool
         Listen on ``cfg.hub`` instead of connecting to it (the launcher on the hub host).
+    settings : mapping, optional
+        Further Zenoh configuration entries, path -> value (e.g. ``transport/link/tls``
+        and ``access_control`` from :func:`openptrack_py.security.policy.session_settings`).
 
     Raises
     ------
@@ -80,13 +85,14 @@ def build_zenoh_config(
             listen_eps = [cfg.hub, *[e for e in listen_eps if e != cfg.hub]]
         elif cfg.hub not in connect_eps:
             connect_eps.append(cfg.hub)
-    settings = {
+    entries = {
         "mode": json.dumps(cfg.mode),
         "listen/endpoints": json.dumps(listen_eps if cfg.mode == "peer" or as_hub else []),
         "connect/endpoints": json.dumps(connect_eps),
         "scouting/multicast/enabled": json.dumps(cfg.multicast_scouting),
     }
-    for key, value in settings.items():
+    entries.update({key: json.dumps(value) for key, value in (settings or {}).items()})
+    for key, value in entries.items():
         try:
             zcfg.insert_json5(key, value)
         except Exception as exc:
@@ -193,6 +199,8 @@ class ZenohBus:
         (at most ``10 * settle_s``). Queries and liveliness requests sent while a peer
         mesh is still forming can go unanswered for seconds (measured: 2 of 3 fresh
         processes got no reply within 3 s when querying at once, none lost after 50 ms).
+    settings : mapping, optional
+        Further Zenoh configuration entries (see :func:`build_zenoh_config`).
     """
 
     def __init__(
@@ -203,10 +211,13 @@ class ZenohBus:
         connect: Sequence[str] | None = None,
         as_hub: bool = False,
         settle_s: float = 0.1,
+        settings: Mapping[str, Any] | None = None,
     ) -> None:
         _init_zenoh_logging()
         self.config = cfg if cfg is not None else ZenohConfig()
-        zcfg = build_zenoh_config(self.config, listen=listen, connect=connect, as_hub=as_hub)
+        zcfg = build_zenoh_config(
+            self.config, listen=listen, connect=connect, as_hub=as_hub, settings=settings
+        )
         check_resolvable(self.config, listen=listen, connect=connect)
         try:
             self.session = zenoh.open(zcfg)

@@ -135,7 +135,10 @@ function onTracks(msg) {
 
 function connect() {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
-  const ws = new WebSocket(`${scheme}://${location.host}/ws`);
+  // a page opened with ?token=... passes it on to the stream (outputs.web.token_file)
+  const token = new URLSearchParams(location.search).get("token");
+  const query = token ? `?token=${encodeURIComponent(token)}` : "";
+  const ws = new WebSocket(`${scheme}://${location.host}/ws${query}`);
   ws.onopen = () => { el("status").textContent = "live"; el("status").className = "ok"; };
   ws.onclose = () => {
     tracks = []; // what was drawn is stale now

@@ -1,0 +1,159 @@
+"""The Zenoh settings of a secured site: mutual TLS and the access-control list.
+
+Every node loads the same list, built from the network file, and Zenoh enforces it on
+every message a node *receives* (the ``ingress`` flow), matching the sender by the
+common name of the certificate its link was authenticated with. A message a node may
+not receive is dropped by Zenoh before it reaches our code. The list:
+
+* every identity of the site (:func:`identities`) may subscribe, query, reply, declare
+  queryables and liveliness tokens under ``opt/<site>/``, and may *send* anything (the
+  receiver decides);
+* each identity may put its own stats (``stats/<name>``) and its own configuration
+  answers (``config/<name>/ack``);
+* a sensor's detector may put that sensor's detections only, the simulator those of
+  the simulated sensors and the ground truth; the tracker the tracks; an output node
+  its smoothed tracks; an operator (``security.operators``) configuration requests;
+* everything else is refused (``default_permission: deny``), so a peer without a
+  certificate of the site's authority cannot even connect, and one with a certificate
+  can do only what its name allows.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from openptrack_py.config import NetworkConfig
+from openptrack_py.security.pki import Identity
+from openptrack_py.transport.keys import SiteKeys
+
+MEMBER = "member"
+"""Subject id of every identity of the site."""
+LAUNCHER = "launcher"
+"""Identity of ``openptrack launch`` (its hub session and status board)."""
+OPERATOR = "operator"
+"""Default identity of the command-line tools (``config``, ``status``, ``echo``)."""
+SIM = "sim"
+TRACKER = "tracker"
+RECORDER = "record"
+INFRASTRUCTURE = (
+    "declare_subscriber",
+    "declare_queryable",
+    "query",
+    "reply",
+    "liveliness_token",
+    "declare_liveliness_subscriber",
+    "liveliness_query",
+)
+"""Messages every member may exchange: they read, they do not write data."""
+
+
+def detector_name(sensor_id: str) -> str:
+    """Node name (and identity) of a sensor's detector."""
+    return f"detector_{sensor_id}"
+
+
+def put_keys(network: NetworkConfig) -> dict[str, list[str]]:
+    """Identity -> the keys it may put, for every node identity of the network."""
+    keys = SiteKeys(network.site)
+    allowed: dict[str, list[str]] = {LAUNCHER: []}
+    if network.sim is not None:
+        simulated = [keys.detections(s.id) for s in network.sensors if s.source == "sim"]
+        if network.sim.use_scenario_sensors or not network.sensors:
+            simulated = [keys.detections("*")]
+        rendered = network.sim.sensor_model == "rgbd"
+        allowed[SIM] = [keys.ground_truth, *([] if rendered else simulated)]
+    for sensor in network.sensors:
+        if sensor.source != "sim" or (
+            network.sim is not None and network.sim.sensor_model == "rgbd"
+        ):
+            allowed[detector_name(sensor.id)] = [keys.detections(sensor.id)]
+    if network.tracker is not None:
+        allowed[TRACKER] = [keys.tracks]
+    for out in network.outputs:
+        allowed[out.name] = [keys.tracks_smoothed]
+    if network.recorder is not None:
+        allowed[RECORDER] = []
+    operators = network.security.operators if network.security is not None else [OPERATOR]
+    for name in operators:
+        allowed.setdefault(name, []).append(keys.config("*"))
+    for name, own in allowed.items():
+        own += [keys.stats(name), keys.config_ack(name)]
+    return allowed
+
+
+def identities(network: NetworkConfig) -> list[str]:
+    """Every identity a secured network needs a certificate for."""
+    return list(put_keys(network))
+
+
+def access_control(network: NetworkConfig) -> dict[str, Any]:
+    """The ``access_control`` section of every node's Zenoh configuration."""
+    keys = SiteKeys(network.site)
+    everything = f"{keys.prefix}/**"
+    allowed = put_keys(network)
+    rules: list[dict[str, Any]] = [
+        {
+            "id": "read",
+            "permission": "allow",
+            "flows": ["ingress", "egress"],
+            "messages": list(INFRASTRUCTURE),
+            "key_exprs": [everything],
+        },
+        {
+            "id": "send",
+            "permission": "allow",
+            "flows": ["egress"],
+            "messages": ["put", "delete"],
+            "key_exprs": [everything],
+        },
+    ]
+    subjects: list[dict[str, Any]] = [{"id": MEMBER, "cert_common_names": list(allowed)}]
+    policies: list[dict[str, Any]] = [{"rules": ["read", "send"], "subjects": [MEMBER]}]
+    for index, (name, put) in enumerate(allowed.items()):
+        rule, subject = f"put-{index}", f"id-{index}"
+        rules.append(
+            {
+                "id": rule,
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["put"],
+                "key_exprs": put,
+            }
+        )
+        subjects.append({"id": subject, "cert_common_names": [name]})
+        policies.append({"rules": [rule], "subjects": [subject]})
+    return {
+        "enabled": True,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    }
+
+
+def session_settings(network: NetworkConfig, identity: str) -> dict[str, Any]:
+    """Zenoh configuration entries (path -> value) of a secured session for ``identity``.
+
+    Empty when the network has no ``security`` section.
+
+    Raises
+    ------
+    ConfigError
+        If a certificate file of ``identity`` is missing (naming it and the command that
+        makes it).
+    """
+    sec = network.security
+    if sec is None:
+        return {}
+    files = Identity(sec.certs, identity)
+    files.check()
+    tls = {
+        "root_ca_certificate": str(files.authority.resolve()),
+        "listen_private_key": str(files.key.resolve()),
+        "listen_certificate": str(files.certificate.resolve()),
+        "connect_private_key": str(files.key.resolve()),
+        "connect_certificate": str(files.certificate.resolve()),
+        "enable_mtls": True,
+        "verify_name_on_connect": sec.verify_names,
+    }
+    return {"transport/link/tls": tls, "access_control": access_control(network)}
