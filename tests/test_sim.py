@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from collections import defaultdict
 from collections.abc import Iterable, Sequence
 
@@ -19,6 +20,7 @@ import pytest
 from openptrack_py.config import NetworkConfig, Pose, PoseError, SensorConfig, SimConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages import (
+    DetectionBatch,
     decode_detection_batch,
     decode_ground_truth,
     encode_detection_batch,
@@ -1077,7 +1079,11 @@ def test_live_player_publishes_every_event_on_a_memory_bus() -> None:
     bus.subscribe("opt/default/ground_truth", lambda s: received.append((s.key, s.payload)))
     node = Node("sim", bus, stats_interval_s=0)
     player = LivePlayer(
-        scenario, node, speed=cfg.sim.speed, ground_truth_rate_hz=cfg.sim.ground_truth_rate_hz
+        scenario,
+        node,
+        speed=cfg.sim.speed,
+        ground_truth_rate_hz=cfg.sim.ground_truth_rate_hz,
+        max_capture_lag_s=None,  # a loaded machine must not drop frames here
     )
     player.run()
     node.close()
@@ -1133,3 +1139,28 @@ def test_live_player_stops_when_the_node_stops() -> None:
     node.close()
     bus.close()
     assert count == 10
+
+
+def test_a_player_that_cannot_keep_up_skips_frames_instead_of_sending_them_late() -> None:
+    scenario = build_scenario("stress", seed=3, duration_s=2.0)
+    bus = MemoryBus()
+    got: list[tuple[float, DetectionBatch]] = []
+    bus.subscribe(
+        "opt/default/detections/*",
+        lambda s: got.append((time.time(), decode_detection_batch(s.payload))),
+    )
+    node = Node("sim", bus, stats_interval_s=0)
+    start = time.time() + 1.0  # set-up time: the first frames are on time
+    # 20x real time: 6000 frames/s of 120 people cannot be simulated that fast
+    LivePlayer(scenario, node, speed=20.0, start_time=start).run()
+    skipped = node.counters.get("skipped")
+    node.close()
+    bus.close()
+    frames = sum(round(2.0 * s.rate_hz) for s in scenario.sensors)
+    assert 0 < skipped < frames
+    by_sensor: dict[str, list[int]] = defaultdict(list)
+    for _, batch in got:
+        by_sensor[batch.sensor_id].append(batch.seq)
+    for seqs in by_sensor.values():  # what is sent is in order, with gaps where frames went
+        assert seqs == sorted(set(seqs))
+    assert len(got) + skipped <= frames

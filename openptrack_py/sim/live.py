@@ -37,12 +37,20 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
     )
 
 
+MAX_CAPTURE_LAG_S = 0.1
+"""A frame captured this long ago (in played time) is skipped rather than simulated late."""
+
+
 class LivePlayer:
     """Publishes a simulation's events at the times they happen.
 
     Each sensor batch goes to ``opt/<site>/detections/<sensor_id>`` when its simulated
     latency has elapsed; ground truth goes to ``opt/<site>/ground_truth``. If publishing
-    falls behind the clock, events go out at once and are counted as ``late``.
+    falls behind the clock, events go out at once and are counted as ``late``; a sensor
+    frame whose capture time is more than :data:`MAX_CAPTURE_LAG_S` behind the clock is
+    dropped before it is simulated (``skipped``), as a real sensor's computer that cannot
+    keep up drops frames, so that the simulator's own overload never shows downstream as
+    stale data (latency) but as a lower frame rate.
 
     Parameters
     ----------
@@ -59,6 +67,9 @@ class LivePlayer:
         sensors themselves (``sensor_model: rgbd``).
     start_time : float, optional
         UNIX time of the scenario's start (shared with rendering detectors); now if omitted.
+    max_capture_lag_s : float or None
+        Skip sensor frames captured longer ago than this (played time); ``None`` plays
+        every frame however late (offline-identical output).
     """
 
     def __init__(
@@ -70,8 +81,10 @@ class LivePlayer:
         ground_truth_rate_hz: float = 30.0,
         publish_detections: bool = True,
         start_time: float | None = None,
+        max_capture_lag_s: float | None = MAX_CAPTURE_LAG_S,
     ) -> None:
         self.scenario = scenario
+        self.max_capture_lag_s = max_capture_lag_s
         self.node = node
         self.speed = speed
         self.ground_truth_rate_hz = ground_truth_rate_hz
@@ -102,7 +115,16 @@ class LivePlayer:
                 }
             },
         )
-        for event in sim.events(sensor_frames=self.publish_detections):
+        limit = self.max_capture_lag_s
+
+        def behind(capture: float) -> bool:
+            lagging = time.time() - (start + (capture - start) / self.speed) > limit  # type: ignore[operator]
+            if lagging:
+                counters.inc("skipped")
+            return lagging
+
+        guard = behind if limit is not None else None
+        for event in sim.events(sensor_frames=self.publish_detections, skip_capture=guard):
             due = start + (event.time - start) / self.speed
             delay = due - time.time()
             if delay > 0:

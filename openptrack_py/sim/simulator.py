@@ -194,10 +194,22 @@ class Simulator:
         )
         return GroundTruthFrame(stamp=self.start_time + snap.t, seq=seq, people=people)
 
-    def events(self, *, sensor_frames: bool = True) -> Iterator[Event]:
+    def events(
+        self,
+        *,
+        sensor_frames: bool = True,
+        skip_capture: Callable[[float], bool] | None = None,
+    ) -> Iterator[Event]:
         """Every event of the run, in non-decreasing ``time`` order.
 
-        With ``sensor_frames`` off, only the ground truth: the sensors are not observed.
+        Parameters
+        ----------
+        sensor_frames : bool
+            Off: only the ground truth; the sensors are not observed.
+        skip_capture : callable, optional
+            Called with each sensor frame's capture time (UNIX seconds) before it is
+            observed; ``True`` drops the frame unobserved, as a sensor's computer that
+            cannot keep up drops frames (the live player's real-time guard).
         """
         end = self.scenario.duration_s
         captures: list[tuple[float, int, int]] = []  # (scenario time, source, frame index)
@@ -222,8 +234,10 @@ class Simulator:
                 continue
             model = self.models[source]
             spec = model.spec
-            observation = model.observe(snap)
             heapq.heappush(captures, (spec.phase_s + (k + 1) / spec.rate_hz, source, k + 1))
+            if skip_capture is not None and skip_capture(self.start_time + t):
+                continue
+            observation = model.observe(snap)
             frame_rng = self._frame_rngs[source]
             latency = max(0.0, spec.latency_s + frame_rng.normal(0.0, spec.latency_jitter_s))
             if frame_rng.random() < spec.frame_drop_probability:
