@@ -351,3 +351,28 @@ def test_only_an_operator_may_change_the_configuration(site: Site) -> None:
     assert "applied max_tracks=150" in accepted.stdout
     since = time.time()
     wait_for(lambda: site.udp_near_since(since, *person_at(time.time() - 0.3)), 5, "tracks")
+
+
+def test_certs_command_makes_what_a_network_needs(tmp_path: Path) -> None:
+    def certs(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "openptrack_py.cli", "certs", *args],
+            capture_output=True, text=True, env=python_env(), cwd=ROOT, timeout=60,
+        )  # fmt: skip
+
+    folder = tmp_path / "certs"
+    net = tmp_path / "net.yaml"
+    net.write_text(NETWORK.format(certs=folder, udp=21234))
+    assert certs("issue", str(folder), "tracker").returncode == 2  # no authority yet
+    assert certs("init", str(folder), "--site", "default").returncode == 0
+    again = certs("init", str(folder))
+    assert again.returncode == 2 and "invalidate" in again.stderr
+    made = certs("issue", str(folder), "--network", str(net), "--host", "master")
+    assert made.returncode == 0, made.stderr
+    assert made.stdout.count("issued") == len(identities(load_network(net)))
+    assert certs("issue", str(folder), "--network", str(net)).returncode == 2  # nothing new
+    listing = certs("list", str(folder)).stdout.splitlines()
+    assert len(listing) == 7 and all(line.endswith("ok") for line in listing)
+    assert all("master" in line for line in listing)
+    for name in identities(load_network(net)):
+        session_settings(load_network(net), name)  # every identity's files are there
