@@ -129,7 +129,7 @@ def test_security_needs_tls_endpoints_and_the_identitys_files(tmp_path: Path) ->
         load_network(net)
     net.write_text(NETWORK.format(certs=tmp_path, udp=21234))
     cfg = load_network(net)
-    with pytest.raises(ConfigError, match="certs init"):
+    with pytest.raises(ConfigError, match=r"copy the site's ca\.pem"):
         session_settings(cfg, "tracker")
     pki.create_authority(tmp_path, "default")
     with pytest.raises(ConfigError, match=r"tracker\.pem.*openptrack certs issue"):
@@ -153,7 +153,14 @@ class Site:
     lock: threading.Lock = field(default_factory=threading.Lock)
     stop: threading.Event = field(default_factory=threading.Event)
 
-    def bus(self, identity: str | None, endpoint: str, *, certs: Path | None = None) -> ZenohBus:
+    def bus(
+        self,
+        identity: str | None,
+        endpoint: str,
+        *,
+        certs: Path | None = None,
+        listen: tuple[str, ...] = (),
+    ) -> ZenohBus:
         """A session authenticated as ``identity`` (``None``: no certificate at all)."""
         cfg = load_network(self.net)
         if identity is None:
@@ -162,7 +169,7 @@ class Site:
             cfg = cfg.model_copy(
                 update={"security": cfg.security.model_copy(update={"certs": certs})}
             )
-        zcfg = ZenohConfig(hub=None, connect=[endpoint], listen=[])
+        zcfg = ZenohConfig(hub=None, connect=[endpoint], listen=list(listen))
         return ZenohBus(zcfg, settings=session_settings(cfg, identity))
 
     def receive(self) -> None:
@@ -370,9 +377,40 @@ def test_certs_command_makes_what_a_network_needs(tmp_path: Path) -> None:
     made = certs("issue", str(folder), "--network", str(net), "--host", "master")
     assert made.returncode == 0, made.stderr
     assert made.stdout.count("issued") == len(identities(load_network(net)))
-    assert certs("issue", str(folder), "--network", str(net)).returncode == 2  # nothing new
+    kept = certs("issue", str(folder), "--network", str(net))
+    assert kept.returncode == 0 and "every identity" in kept.stdout  # nothing new to issue
+    assert certs("issue", str(folder), "../escape").returncode == 2
     listing = certs("list", str(folder)).stdout.splitlines()
     assert len(listing) == 7 and all(line.endswith("ok") for line in listing)
     assert all("master" in line for line in listing)
     for name in identities(load_network(net)):
         session_settings(load_network(net), name)  # every identity's files are there
+
+
+def test_client_mode_and_borrowed_node_names_are_refused(tmp_path: Path) -> None:
+    text = NETWORK.format(certs=tmp_path, udp=21234)
+    net = tmp_path / "net.yaml"
+    net.write_text(text.replace("zenoh: {hub: null,", "zenoh: {mode: client, hub: null,"))
+    with pytest.raises(ConfigError, match="zenoh.mode must be 'peer'"):
+        load_network(net)
+    for name in ("tracker", "detector_a"):  # an output's certificate would get their rights
+        net.write_text(text.replace("- name: output", f"- name: {name}"))
+        with pytest.raises(ConfigError, match="other nodes' names"):
+            load_network(net)
+
+
+@pytest.mark.zenoh
+@pytest.mark.slow
+def test_a_node_announces_only_its_own_liveliness(site: Site) -> None:
+    sensor_endpoint = f"tls/127.0.0.1:{free_port()}"
+    with site.bus("detector_b", site.tracker_endpoint, listen=(sensor_endpoint,)) as sensor:
+        fake = sensor.declare_token("opt/default/alive/sim")  # no simulator runs here
+        own = sensor.declare_token("opt/default/alive/detector_b")
+        # the operator links to the sensor directly (peers do not route for each other)
+        with site.bus("operator", sensor_endpoint) as operator:
+            seen = operator.alive("opt/default/alive/*", timeout_s=1.5)
+        fake.close()
+        own.close()
+    assert "opt/default/alive/tracker" in seen  # the real nodes are seen alive (gossip)
+    assert "opt/default/alive/detector_b" in seen  # and the sensor's own token
+    assert "opt/default/alive/sim" not in seen

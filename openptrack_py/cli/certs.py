@@ -75,14 +75,18 @@ def run(args: argparse.Namespace) -> int:
         from openptrack_py.security.policy import identities
 
         wanted = identities(load_network(resolve_config_path(args.network)))
-        names += [
+        missing = [
             n
             for n in wanted
             if args.force or not pki.Identity(args.folder, n).certificate.exists()
         ]
+        if not missing and not names:
+            print(f"every identity of {args.network} has its certificate in {args.folder}")
+            return 0
+        names += missing
     if not names:
         print(
-            "openptrack certs issue: nothing to issue (name identities or --network)",
+            "openptrack certs issue: nothing to issue (name identities or give --network)",
             file=sys.stderr,
         )
         return EXIT_CONFIG

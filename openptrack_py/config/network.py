@@ -15,6 +15,11 @@ from openptrack_py.config.tracker import TrackerConfig
 from openptrack_py.config.zenoh import ZenohConfig
 from openptrack_py.errors import ConfigError
 
+RESERVED_NODE_NAMES = ("launcher", "operator", "record", "sim", "tracker")
+"""Names of nodes and tools that an output node may not take (its stats, its certificate)."""
+DETECTOR_PREFIX = "detector_"
+"""A sensor's detector node is ``detector_<sensor id>``."""
+
 
 class NetworkConfig(StrictModel):
     """A whole deployment, as read from one network file.
@@ -65,6 +70,14 @@ class NetworkConfig(StrictModel):
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
             raise ValueError(f"output names must be unique; repeated: {', '.join(twice)}")
+        taken = sorted(
+            n for n in names if n in RESERVED_NODE_NAMES or n.startswith(DETECTOR_PREFIX)
+        )
+        if taken:
+            raise ValueError(
+                f"output names {', '.join(taken)} are other nodes' names (reserved: "
+                f"{', '.join(RESERVED_NODE_NAMES)}, {DETECTOR_PREFIX}<sensor id>)"
+            )
         simulated = [s.id for s in self.sensors if s.source == "sim"]
         if self.sim is not None and self.sim.sensor_model == "rgbd":
             if self.sim.use_scenario_sensors:
@@ -81,6 +94,12 @@ class NetworkConfig(StrictModel):
             named = [("zenoh.hub", self.zenoh.hub)] if self.zenoh.hub else []
             named += [(f"zenoh.listen.{i}", e) for i, e in enumerate(self.zenoh.listen)]
             named += [(f"zenoh.connect.{i}", e) for i, e in enumerate(self.zenoh.connect)]
+            if self.zenoh.mode != "peer":
+                raise ValueError(
+                    "with 'security' zenoh.mode must be 'peer': access control checks the "
+                    "certificate of the link a message arrives on, and a router or hub "
+                    "relaying for clients would stand for every sender"
+                )
             plain = [
                 f"{key} ({endpoint})" for key, endpoint in named if not endpoint.startswith("tls/")
             ]

@@ -26,8 +26,8 @@ class SecurityConfig(StrictModel):
         identity on this machine, ``<identity>.pem`` and ``<identity>.key``. Relative
         paths are taken from the directory the command runs in.
     operators : list of str
-        Certificate names allowed to change nodes' configuration (``openptrack config``)
-        and to record; every command-line tool uses the identity ``operator`` unless
+        Certificate names allowed to change nodes' configuration (``openptrack config``);
+        every command-line tool uses the identity ``operator`` unless
         ``--identity`` says otherwise.
     verify_names : bool
         Also check that a peer's certificate names the host it was reached at. Off by

@@ -157,6 +157,11 @@ class WebServer:
         self.counters = counters
         self._token = cfg.token()
         self._ssl = _server_tls(cfg)
+        if self._token is not None and self._ssl is None:
+            log.warning(
+                "outputs.web: a token without tls_certificate crosses the network in clear "
+                "text; anyone on the path can read and reuse it"
+            )
         self._scene = orjson.dumps(scene_message)
         self._clients: dict[ServerConnection, asyncio.Queue[str]] = {}
         self._closing: set[asyncio.Task[None]] = set()

@@ -41,6 +41,11 @@ def run_node(
     name = args.name or kind
     configure_logging(name, args.log_level, args.log_format)
     try:
+        if args.identity is not None and args.identity != name:
+            raise ConfigError(
+                f"--identity: a node authenticates as its own name ({name!r}); give "
+                "--name to run it under another"
+            )
         cfg = network_from_args(args)
         with (
             bus_from_args(cfg, args, identity=name) as bus,

@@ -14,10 +14,12 @@ from __future__ import annotations
 import datetime
 import ipaddress
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from openptrack_py.config.base import NAME_PATTERN
 from openptrack_py.errors import ConfigError
 
 CA_NAME = "ca"
@@ -62,14 +64,16 @@ class Identity:
         """Raise a :class:`ConfigError` naming the first missing file and how to make it."""
         if not self.authority.is_file():
             raise ConfigError(
-                f"security.certs: no {self.authority} (make one: openptrack certs init "
-                f"{self.folder})"
+                f"security.certs: no {self.authority}: copy the site's ca.pem from the "
+                "machine that holds ca.key (a new authority, openptrack certs init, is only "
+                "for a new site)"
             )
         for path in (self.certificate, self.key):
             if not path.is_file():
                 raise ConfigError(
-                    f"security.certs: no {path} for identity {self.name!r} (make it: "
-                    f"openptrack certs issue {self.folder} {self.name})"
+                    f"security.certs: no {path} for identity {self.name!r}: copy it from the "
+                    f"machine that holds ca.key, where 'openptrack certs issue FOLDER "
+                    f"{self.name}' makes it"
                 )
 
 
@@ -89,6 +93,7 @@ def _crypto():
 def _write_private(path: Path, data: bytes) -> None:
     """Write a key readable by its owner only."""
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    os.fchmod(fd, 0o600)  # an existing file keeps its mode through O_CREAT
     with os.fdopen(fd, "wb") as out:
         out.write(data)
 
@@ -165,8 +170,8 @@ def _load_authority(folder: Path) -> tuple[object, object]:
     cert_path, key_path = folder / f"{CA_NAME}.pem", folder / f"{CA_NAME}.key"
     if not key_path.is_file():
         raise ConfigError(
-            f"no {key_path}: certificates are issued where the authority's key is "
-            f"(make one: openptrack certs init {folder})"
+            f"no {key_path}: certificates are issued on the machine that holds the site's "
+            f"authority key (for a new site: openptrack certs init {folder})"
         )
     cert = x509.load_pem_x509_certificate(cert_path.read_bytes())
     key = serialization.load_pem_private_key(key_path.read_bytes(), password=None)
@@ -213,11 +218,15 @@ def issue(
     ConfigError
         If the authority is missing or the certificate exists and ``overwrite`` is false.
     """
+    if not re.match(NAME_PATTERN, name) or len(name) > 64:
+        raise ConfigError(
+            f"certificate name {name!r}: must be a node name (letters, digits, '_', '.', '-')"
+        )
     x509, hashes, serialization, ec, eku, name_oid = _crypto()
     identity = Identity(folder, name)
+    ca_cert, ca_key = _load_authority(folder)
     if identity.certificate.exists() and not overwrite:
         raise ConfigError(f"{identity.certificate} exists (--force to issue it again)")
-    ca_cert, ca_key = _load_authority(folder)
     key = ec.generate_private_key(ec.SECP256R1())
     now = _now()
     cert = (
@@ -258,7 +267,10 @@ class CertificateInfo:
 def describe(folder: Path) -> list[CertificateInfo]:
     """Every certificate in ``folder`` except the authority's, checked against it."""
     x509, _, _, _, _, name_oid = _crypto()
-    authority = x509.load_pem_x509_certificate((folder / f"{CA_NAME}.pem").read_bytes())
+    ca_path = folder / f"{CA_NAME}.pem"
+    if not ca_path.is_file():
+        raise ConfigError(f"no {ca_path}: not a certificate folder (openptrack certs init)")
+    authority = x509.load_pem_x509_certificate(ca_path.read_bytes())
     out = []
     for path in sorted(folder.glob("*.pem")):
         if path.stem == CA_NAME:

@@ -5,17 +5,21 @@ every message a node *receives* (the ``ingress`` flow), matching the sender by t
 common name of the certificate its link was authenticated with. A message a node may
 not receive is dropped by Zenoh before it reaches our code. The list:
 
-* every identity of the site (:func:`identities`) may subscribe, query, reply, declare
-  queryables and liveliness tokens under ``opt/<site>/``, and may *send* anything (the
-  receiver decides);
+* every identity of the site (:func:`identities`) may subscribe and watch liveliness
+  under ``opt/<site>/``, and may *send* anything (the receiver decides);
 * each identity may put its own stats (``stats/<name>``) and its own configuration
-  answers (``config/<name>/ack``);
+  answers (``config/<name>/ack``), and announce only its own liveliness token
+  (``alive/<name>``), so no certificate can make a dead node look alive;
 * a sensor's detector may put that sensor's detections only, the simulator those of
   the simulated sensors and the ground truth; the tracker the tracks; an output node
   its smoothed tracks; an operator (``security.operators``) configuration requests;
-* everything else is refused (``default_permission: deny``), so a peer without a
-  certificate of the site's authority cannot even connect, and one with a certificate
-  can do only what its name allows.
+* everything else is refused (``default_permission: deny``), queries and replies
+  included (no node serves any yet), so a peer without a certificate of the site's
+  authority cannot even connect, and one with a certificate can do only what its name
+  allows.
+
+Members are not hidden from each other: any certificate of the site may subscribe to
+every key of the site.
 """
 
 from __future__ import annotations
@@ -35,15 +39,7 @@ OPERATOR = "operator"
 SIM = "sim"
 TRACKER = "tracker"
 RECORDER = "record"
-INFRASTRUCTURE = (
-    "declare_subscriber",
-    "declare_queryable",
-    "query",
-    "reply",
-    "liveliness_token",
-    "declare_liveliness_subscriber",
-    "liveliness_query",
-)
+INFRASTRUCTURE = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_query")
 """Messages every member may exchange: they read, they do not write data."""
 
 
@@ -58,7 +54,9 @@ def put_keys(network: NetworkConfig) -> dict[str, list[str]]:
     allowed: dict[str, list[str]] = {LAUNCHER: []}
     if network.sim is not None:
         simulated = [keys.detections(s.id) for s in network.sensors if s.source == "sim"]
-        if network.sim.use_scenario_sensors or not network.sensors:
+        if network.sim.use_scenario_sensors or not simulated:
+            # the scenario's own sensors (the rule of sim.live.scenario_from_network):
+            # their ids are known only to the simulator
             simulated = [keys.detections("*")]
         rendered = network.sim.sensor_model == "rgbd"
         allowed[SIM] = [keys.ground_truth, *([] if rendered else simulated)]
@@ -103,14 +101,14 @@ def access_control(network: NetworkConfig) -> dict[str, Any]:
             "id": "send",
             "permission": "allow",
             "flows": ["egress"],
-            "messages": ["put", "delete"],
+            "messages": ["put", "delete", "liveliness_token"],
             "key_exprs": [everything],
         },
     ]
     subjects: list[dict[str, Any]] = [{"id": MEMBER, "cert_common_names": list(allowed)}]
     policies: list[dict[str, Any]] = [{"rules": ["read", "send"], "subjects": [MEMBER]}]
     for index, (name, put) in enumerate(allowed.items()):
-        rule, subject = f"put-{index}", f"id-{index}"
+        rule, token, subject = f"put-{index}", f"alive-{index}", f"id-{index}"
         rules.append(
             {
                 "id": rule,
@@ -120,8 +118,17 @@ def access_control(network: NetworkConfig) -> dict[str, Any]:
                 "key_exprs": put,
             }
         )
+        rules.append(
+            {
+                "id": token,
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["liveliness_token"],
+                "key_exprs": [keys.alive(name)],
+            }
+        )
         subjects.append({"id": subject, "cert_common_names": [name]})
-        policies.append({"rules": [rule], "subjects": [subject]})
+        policies.append({"rules": [rule, token], "subjects": [subject]})
     return {
         "enabled": True,
         "default_permission": "deny",
