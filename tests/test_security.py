@@ -391,7 +391,7 @@ def test_client_mode_and_borrowed_node_names_are_refused(tmp_path: Path) -> None
     text = NETWORK.format(certs=tmp_path, udp=21234)
     net = tmp_path / "net.yaml"
     net.write_text(text.replace("zenoh: {hub: null,", "zenoh: {mode: client, hub: null,"))
-    with pytest.raises(ConfigError, match="zenoh.mode must be 'peer'"):
+    with pytest.raises(ConfigError, match=r"zenoh\.mode must be 'peer'"):
         load_network(net)
     for name in ("tracker", "detector_a"):  # an output's certificate would get their rights
         net.write_text(text.replace("- name: output", f"- name: {name}"))
