@@ -340,11 +340,10 @@ class StoneSoupFeed:
 
     def hypotheses_at(self, t: float) -> Hypotheses | None:
         """Latest confirmed tracks extrapolated to ``t`` along their velocity."""
-        if self._latest is None or t - self._latest_true_time > self.stale_after_s:
+        if self._latest is None:
             return None
         ids, rows = self._latest
-        dt = t - self._latest_true_time
-        return Hypotheses(ids, rows[:, 0:2] + dt * rows[:, 2:4])
+        return Hypotheses.extrapolated(ids, rows, self._latest_true_time, t, self.stale_after_s)
 
 
 @dataclass

@@ -121,10 +121,10 @@ class NorfairFeed:
 
     def hypotheses_at(self, t: float) -> Hypotheses | None:
         """Latest tracks extrapolated to ``t``."""
-        if self._latest is None or t - self._latest_true_time > self.stale_after_s:
+        if self._latest is None:
             return None
         ids, rows = self._latest
-        return Hypotheses(ids, rows[:, 0:2] + (t - self._latest_true_time) * rows[:, 2:4])
+        return Hypotheses.extrapolated(ids, rows, self._latest_true_time, t, self.stale_after_s)
 
     def close(self) -> None:
         """End the child process."""

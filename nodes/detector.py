@@ -19,6 +19,7 @@ import sys
 from collections.abc import Sequence
 
 from openptrack_py.config import NetworkConfig
+from openptrack_py.config.network import detector_node_name
 from openptrack_py.detection.service import DetectorService, source_for_sensor
 from openptrack_py.errors import ConfigError, SourceError
 from openptrack_py.runtime.entry import node_parser, run_node
@@ -46,7 +47,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     known, _ = parser.parse_known_args(argv)
     if "--name" not in argv:
-        argv += ["--name", f"detector_{known.sensor}"]
+        argv += ["--name", detector_node_name(known.sensor)]
     return run_node("detector", parser, main_loop, argv)
 
 

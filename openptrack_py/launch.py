@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import IO
 
 from openptrack_py.config import NetworkConfig
+from openptrack_py.config.network import RECORDER, SIM, TRACKER, detector_node_name
 
 LOCAL_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 
@@ -100,7 +101,7 @@ def plan_nodes(
     wants_sim = simulated or (cfg.sim is not None and cfg.sim.use_scenario_sensors)
     if cfg.sim is not None and host_matches(cfg.sim.host, host) and (wants_sim or not cfg.sensors):
         finite = cfg.sim.duration_s is not None
-        specs.append(NodeSpec("sim", "openptrack_py.nodes.sim", common, finite=finite))
+        specs.append(NodeSpec(SIM, "openptrack_py.nodes.sim", common, finite=finite))
     rgbd = cfg.sim is not None and cfg.sim.sensor_model == "rgbd"
     for sensor in cfg.sensors:
         # A detector per real sensor on its own machine, and per rendered sensor on the
@@ -110,19 +111,19 @@ def plan_nodes(
         else:
             runs_here = host_matches(sensor.host, host)
         if runs_here:
-            name = f"detector_{sensor.id}"
+            name = detector_node_name(sensor.id)
             args = (*common, "--sensor", sensor.id, "--name", name)
             finite = sensor.source == "recording"
             specs.append(NodeSpec(name, "openptrack_py.nodes.detector", args, finite=finite))
     if cfg.tracker is not None and host_matches(cfg.tracker.host, host):
-        specs.append(NodeSpec("tracker", "openptrack_py.nodes.tracker", common))
+        specs.append(NodeSpec(TRACKER, "openptrack_py.nodes.tracker", common))
     for out in cfg.outputs:
         if host_matches(out.host, host):
             specs.append(
                 NodeSpec(out.name, "openptrack_py.nodes.output", (*common, "--name", out.name))
             )
     if cfg.recorder is not None and host_matches(cfg.recorder.host, host):
-        specs.append(NodeSpec("record", "openptrack_py.nodes.record", common))
+        specs.append(NodeSpec(RECORDER, "openptrack_py.nodes.record", common))
     return specs
 
 

@@ -16,6 +16,7 @@ Neither sets a per-example deadline: tests never assert wall-clock times.
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -102,6 +103,19 @@ def start_tracker(net: Path, endpoint: str, log: Path) -> subprocess.Popen[str]:
          "--no-multicast-scouting"],
         stdout=log.open("w"), stderr=subprocess.STDOUT, text=True, env=python_env(), cwd=ROOT,
     )  # fmt: skip
+
+
+def stop_process(*procs: subprocess.Popen[str], timeout_s: float = 15.0) -> None:
+    """Ask running processes to stop (SIGINT, as Ctrl-C), then kill those still there."""
+    running = [p for p in procs if p.poll() is None]
+    for proc in running:
+        proc.send_signal(signal.SIGINT)
+    for proc in running:
+        try:
+            proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 def wait_for(predicate: Callable[[], bool], timeout_s: float = 15.0, what: str = "") -> None:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import re
-import signal
 import subprocess
 import threading
 import time
@@ -32,7 +31,7 @@ from openptrack_py.messages import (
 from openptrack_py.messages.codec import decode_node_stats
 from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
-from tests.conftest import free_port, start_tracker, wait_for
+from tests.conftest import free_port, start_tracker, stop_process, wait_for
 
 pytestmark = [pytest.mark.zenoh, pytest.mark.slow]
 
@@ -142,12 +141,7 @@ def rig(tmp_path: Path) -> Iterator[Rig]:
         if sensor.is_alive():
             sensor.join(5)
         bus.close()
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        stop_process(proc)
 
 
 def _attack(rig: Rig, seconds: float, each: Callable[[int, float], None], period: float) -> float:

@@ -38,7 +38,7 @@ from openptrack_py.messages import (
 from openptrack_py.security import pki
 from openptrack_py.security.policy import access_control, identities, session_settings
 from openptrack_py.transport.zenoh_bus import ZenohBus
-from tests.conftest import ROOT, free_port, python_env, wait_for
+from tests.conftest import ROOT, free_port, python_env, stop_process, wait_for
 
 NETWORK = """\
 site: default
@@ -264,13 +264,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
         s.stop.set()
         feeder.join(2)
         sensor.close()
-        for proc in procs:
-            proc.terminate()
-        for proc in procs:
-            try:
-                proc.wait(10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        stop_process(*procs)
         udp.close()
         receiver.join(2)
 

@@ -23,7 +23,7 @@ from openptrack_py.messages import (
 )
 from openptrack_py.transport import wait_for_subscribers
 from openptrack_py.transport.zenoh_bus import ZenohBus
-from tests.conftest import ROOT, free_port, python_env, start_tracker, wait_for
+from tests.conftest import ROOT, free_port, python_env, start_tracker, stop_process, wait_for
 
 pytestmark = pytest.mark.zenoh
 
@@ -72,12 +72,7 @@ def tracker_node(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], Client
         yield proc, client, endpoint, log
     finally:
         client.bus.close()
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        stop_process(proc)
 
 
 def _config(endpoint: str, *assignments: str) -> subprocess.CompletedProcess[str]:

@@ -56,9 +56,10 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Start the nodes, supervise them until they end or a signal asks; return the status."""
+    from openptrack_py.config.network import LAUNCHER
     from openptrack_py.launch import Supervisor, host_matches, plan_nodes, this_host
     from openptrack_py.runtime.status import StatusBoard
-    from openptrack_py.security.policy import LAUNCHER, session_settings
+    from openptrack_py.security.policy import session_settings
     from openptrack_py.transport.zenoh_bus import ZenohBus
 
     path = resolve_config_path(args.network)

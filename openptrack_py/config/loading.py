@@ -219,6 +219,13 @@ def load_config(
         For unreadable files, bad overrides or invalid values.
     """
     data = read_yaml(path) if path is not None else {}
+    return _validate_with_overrides(model, data, overrides, path)
+
+
+def _validate_with_overrides(
+    model: type[M], data: dict[str, Any], overrides: Iterable[str], path: str | Path | None
+) -> M:
+    """Apply ``overrides`` to ``data`` and validate; errors name the ``--set`` they come from."""
     overrides = list(overrides)
     data = apply_overrides(data, overrides)
     try:
@@ -240,12 +247,13 @@ def load_network(path: str | Path | None = None, overrides: Iterable[str] = ()) 
         For an empty file (a network needs at least its sensors or simulation), and as
         :func:`load_config`.
     """
-    if path is not None and not read_yaml(path):
+    data = read_yaml(path) if path is not None else {}
+    if path is not None and not data:
         raise ConfigError(
             f"{path}: the network file is empty; it needs at least 'sensors:' (see "
             "'openptrack show-config demo' for a complete example)"
         )
-    return load_config(NetworkConfig, path, overrides)
+    return _validate_with_overrides(NetworkConfig, data, overrides, path)
 
 
 def to_yaml(config: BaseModel) -> str:

@@ -15,10 +15,21 @@ from openptrack_py.config.tracker import TrackerConfig
 from openptrack_py.config.zenoh import ZenohConfig
 from openptrack_py.errors import ConfigError
 
-RESERVED_NODE_NAMES = ("launcher", "operator", "record", "sim", "tracker")
+LAUNCHER = "launcher"
+"""Name (and identity) of ``openptrack launch``: its hub session and status board."""
+OPERATOR = "operator"
+"""Default identity of the command-line tools (``config``, ``status``, ``echo``)."""
+RECORDER = "record"
+SIM = "sim"
+TRACKER = "tracker"
+RESERVED_NODE_NAMES = (LAUNCHER, OPERATOR, RECORDER, SIM, TRACKER)
 """Names of nodes and tools that an output node may not take (its stats, its certificate)."""
 DETECTOR_PREFIX = "detector_"
-"""A sensor's detector node is ``detector_<sensor id>``."""
+
+
+def detector_node_name(sensor_id: str) -> str:
+    """Name (and identity) of a sensor's detector node: ``detector_<sensor id>``."""
+    return f"{DETECTOR_PREFIX}{sensor_id}"
 
 
 class NetworkConfig(StrictModel):
@@ -91,9 +102,6 @@ class NetworkConfig(StrictModel):
                     "(none listed)"
                 )
         if self.security is not None:
-            named = [("zenoh.hub", self.zenoh.hub)] if self.zenoh.hub else []
-            named += [(f"zenoh.listen.{i}", e) for i, e in enumerate(self.zenoh.listen)]
-            named += [(f"zenoh.connect.{i}", e) for i, e in enumerate(self.zenoh.connect)]
             if self.zenoh.mode != "peer":
                 raise ValueError(
                     "with 'security' zenoh.mode must be 'peer': access control checks the "
@@ -101,7 +109,9 @@ class NetworkConfig(StrictModel):
                     "relaying for clients would stand for every sender"
                 )
             plain = [
-                f"{key} ({endpoint})" for key, endpoint in named if not endpoint.startswith("tls/")
+                f"{key} ({endpoint})"
+                for key, endpoint in self.zenoh.named_endpoints()
+                if not endpoint.startswith("tls/")
             ]
             if plain:
                 raise ValueError(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
 
@@ -43,6 +44,21 @@ class ZenohConfig(StrictModel):
     connect: list[str] = Field(default_factory=list)
     multicast_scouting: bool = False
     config_file: Path | None = None
+
+    def named_endpoints(
+        self, listen: Sequence[str] | None = None, connect: Sequence[str] | None = None
+    ) -> list[tuple[str, str]]:
+        """Every endpoint with the key that gives it (``zenoh.hub``, ``zenoh.listen.0``...).
+
+        ``listen`` and ``connect`` replace the configured ones (command-line flags).
+        """
+        named = [("zenoh.hub", self.hub)] if self.hub else []
+        for key, endpoints in (
+            ("zenoh.listen", self.listen if listen is None else listen),
+            ("zenoh.connect", self.connect if connect is None else connect),
+        ):
+            named += [(f"{key}.{i}", e) for i, e in enumerate(endpoints)]
+        return named
 
     @field_validator("hub")
     @classmethod

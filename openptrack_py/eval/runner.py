@@ -53,6 +53,19 @@ class Hypotheses:
     ids: np.ndarray
     xy: np.ndarray
 
+    @classmethod
+    def extrapolated(
+        cls, ids: np.ndarray, rows: np.ndarray, since: float, t: float, stale_after_s: float
+    ) -> Hypotheses | None:
+        """Tracks output at true time ``since`` moved along their velocity to ``t``.
+
+        ``rows`` is ``(n, 4)``: x, y, vx, vy. ``None`` when the output is older than
+        ``stale_after_s`` (it counts as no output at all).
+        """
+        if t - since > stale_after_s:
+            return None
+        return cls(ids, rows[:, 0:2] + (t - since) * rows[:, 2:4])
+
 
 class HypothesisFeed(Protocol):
     """Something that watches the simulation and says where it believes people are.

@@ -8,9 +8,10 @@ import os
 from pathlib import Path
 
 from openptrack_py.config import NetworkConfig, ZenohConfig, load_network
+from openptrack_py.config.network import OPERATOR
 from openptrack_py.errors import ConfigError
 from openptrack_py.runtime.logs import LOG_LEVELS
-from openptrack_py.security.policy import OPERATOR, session_settings
+from openptrack_py.security.policy import session_settings
 from openptrack_py.transport.zenoh_bus import ZenohBus, endpoints_from_flags
 
 

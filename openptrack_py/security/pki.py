@@ -12,12 +12,14 @@ Needs the ``cryptography`` package (the ``[security]`` extra); imported only her
 from __future__ import annotations
 
 import datetime
+import functools
 import ipaddress
 import os
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 
 from openptrack_py.config.base import NAME_PATTERN
 from openptrack_py.errors import ConfigError
@@ -77,9 +79,12 @@ class Identity:
                 )
 
 
-def _crypto():
+@functools.cache
+def _crypto() -> SimpleNamespace:
+    """The ``cryptography`` modules, imported on first use (an unsecured site never does)."""
     try:
         from cryptography import x509
+        from cryptography.exceptions import InvalidSignature
         from cryptography.hazmat.primitives import hashes, serialization
         from cryptography.hazmat.primitives.asymmetric import ec
         from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
@@ -87,7 +92,15 @@ def _crypto():
         raise ConfigError(
             "certificates need pip install 'openptrack_py[security]' (the cryptography package)"
         ) from None
-    return x509, hashes, serialization, ec, ExtendedKeyUsageOID, NameOID
+    return SimpleNamespace(
+        x509=x509,
+        hashes=hashes,
+        serialization=serialization,
+        ec=ec,
+        eku=ExtendedKeyUsageOID,
+        oid=NameOID,
+        InvalidSignature=InvalidSignature,
+    )
 
 
 def _write_private(path: Path, data: bytes) -> None:
@@ -99,11 +112,11 @@ def _write_private(path: Path, data: bytes) -> None:
 
 
 def _key_pem(key: object) -> bytes:
-    _, _, serialization, _, _, _ = _crypto()
+    c = _crypto()
     return key.private_bytes(  # type: ignore[attr-defined]
-        serialization.Encoding.PEM,
-        serialization.PrivateFormat.PKCS8,
-        serialization.NoEncryption(),
+        c.serialization.Encoding.PEM,
+        c.serialization.PrivateFormat.PKCS8,
+        c.serialization.NoEncryption(),
     )
 
 
@@ -120,7 +133,7 @@ def create_authority(folder: Path, site: str, *, overwrite: bool = False) -> Pat
         If an authority is there already and ``overwrite`` is false (a new authority
         invalidates every certificate issued by the old one).
     """
-    x509, hashes, serialization, ec, _, name_oid = _crypto()
+    c = _crypto()
     folder.mkdir(parents=True, exist_ok=True)
     cert_path, key_path = folder / f"{CA_NAME}.pem", folder / f"{CA_NAME}.key"
     if cert_path.exists() and not overwrite:
@@ -128,15 +141,15 @@ def create_authority(folder: Path, site: str, *, overwrite: bool = False) -> Pat
             f"{cert_path} exists: a new authority would invalidate every certificate it "
             "issued (--force to replace it)"
         )
-    key = ec.generate_private_key(ec.SECP256R1())
-    subject = x509.Name(
+    key = c.ec.generate_private_key(c.ec.SECP256R1())
+    subject = c.x509.Name(
         [
-            x509.NameAttribute(name_oid.ORGANIZATION_NAME, "openptrack_py"),
-            x509.NameAttribute(name_oid.COMMON_NAME, f"openptrack_py site {site}"),
+            c.x509.NameAttribute(c.oid.ORGANIZATION_NAME, "openptrack_py"),
+            c.x509.NameAttribute(c.oid.COMMON_NAME, f"openptrack_py site {site}"),
         ]
     )
     now = _now()
-    usage = x509.KeyUsage(
+    usage = c.x509.KeyUsage(
         digital_signature=True,
         key_cert_sign=True,
         crl_sign=True,
@@ -148,44 +161,46 @@ def create_authority(folder: Path, site: str, *, overwrite: bool = False) -> Pat
         decipher_only=False,
     )
     cert = (
-        x509.CertificateBuilder()
+        c.x509.CertificateBuilder()
         .subject_name(subject)
         .issuer_name(subject)
         .public_key(key.public_key())
-        .serial_number(x509.random_serial_number())
+        .serial_number(c.x509.random_serial_number())
         .not_valid_before(now - datetime.timedelta(hours=1))
         .not_valid_after(now + datetime.timedelta(days=CA_DAYS))
-        .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
+        .add_extension(c.x509.BasicConstraints(ca=True, path_length=0), critical=True)
         .add_extension(usage, critical=True)
-        .add_extension(x509.SubjectKeyIdentifier.from_public_key(key.public_key()), critical=False)
-        .sign(key, hashes.SHA256())
+        .add_extension(
+            c.x509.SubjectKeyIdentifier.from_public_key(key.public_key()), critical=False
+        )
+        .sign(key, c.hashes.SHA256())
     )
     _write_private(key_path, _key_pem(key))
-    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    cert_path.write_bytes(cert.public_bytes(c.serialization.Encoding.PEM))
     return cert_path
 
 
 def _load_authority(folder: Path) -> tuple[object, object]:
-    x509, _, serialization, _, _, _ = _crypto()
+    c = _crypto()
     cert_path, key_path = folder / f"{CA_NAME}.pem", folder / f"{CA_NAME}.key"
     if not key_path.is_file():
         raise ConfigError(
             f"no {key_path}: certificates are issued on the machine that holds the site's "
             f"authority key (for a new site: openptrack certs init {folder})"
         )
-    cert = x509.load_pem_x509_certificate(cert_path.read_bytes())
-    key = serialization.load_pem_private_key(key_path.read_bytes(), password=None)
+    cert = c.x509.load_pem_x509_certificate(cert_path.read_bytes())
+    key = c.serialization.load_pem_private_key(key_path.read_bytes(), password=None)
     return cert, key
 
 
 def _alt_names(hosts: Sequence[str]) -> list[object]:
-    x509, _, _, _, _, _ = _crypto()
+    c = _crypto()
     names: list[object] = []
     for host in dict.fromkeys(hosts):
         try:
-            names.append(x509.IPAddress(ipaddress.ip_address(host)))
+            names.append(c.x509.IPAddress(ipaddress.ip_address(host)))
         except ValueError:
-            names.append(x509.DNSName(host))
+            names.append(c.x509.DNSName(host))
     return names
 
 
@@ -222,34 +237,36 @@ def issue(
         raise ConfigError(
             f"certificate name {name!r}: must be a node name (letters, digits, '_', '.', '-')"
         )
-    x509, hashes, serialization, ec, eku, name_oid = _crypto()
+    c = _crypto()
     identity = Identity(folder, name)
     ca_cert, ca_key = _load_authority(folder)
     if identity.certificate.exists() and not overwrite:
         raise ConfigError(f"{identity.certificate} exists (--force to issue it again)")
-    key = ec.generate_private_key(ec.SECP256R1())
+    key = c.ec.generate_private_key(c.ec.SECP256R1())
     now = _now()
     cert = (
-        x509.CertificateBuilder()
-        .subject_name(x509.Name([x509.NameAttribute(name_oid.COMMON_NAME, name)]))
+        c.x509.CertificateBuilder()
+        .subject_name(c.x509.Name([c.x509.NameAttribute(c.oid.COMMON_NAME, name)]))
         .issuer_name(ca_cert.subject)  # type: ignore[attr-defined]
         .public_key(key.public_key())
-        .serial_number(x509.random_serial_number())
+        .serial_number(c.x509.random_serial_number())
         .not_valid_before(now - datetime.timedelta(hours=1))
         .not_valid_after(now + datetime.timedelta(days=days))
-        .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+        .add_extension(c.x509.BasicConstraints(ca=False, path_length=None), critical=True)
         .add_extension(
-            x509.SubjectAlternativeName(_alt_names([*DEFAULT_HOSTS, *hosts])), critical=False
+            c.x509.SubjectAlternativeName(_alt_names([*DEFAULT_HOSTS, *hosts])), critical=False
         )
-        .add_extension(x509.ExtendedKeyUsage([eku.SERVER_AUTH, eku.CLIENT_AUTH]), critical=False)
         .add_extension(
-            x509.AuthorityKeyIdentifier.from_issuer_public_key(ca_key.public_key()),  # type: ignore[attr-defined]
+            c.x509.ExtendedKeyUsage([c.eku.SERVER_AUTH, c.eku.CLIENT_AUTH]), critical=False
+        )
+        .add_extension(
+            c.x509.AuthorityKeyIdentifier.from_issuer_public_key(ca_key.public_key()),  # type: ignore[attr-defined]
             critical=False,
         )
-        .sign(ca_key, hashes.SHA256())  # type: ignore[arg-type]
+        .sign(ca_key, c.hashes.SHA256())  # type: ignore[arg-type]
     )
     _write_private(identity.key, _key_pem(key))
-    identity.certificate.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    identity.certificate.write_bytes(cert.public_bytes(c.serialization.Encoding.PEM))
     return identity
 
 
@@ -266,29 +283,29 @@ class CertificateInfo:
 
 def describe(folder: Path) -> list[CertificateInfo]:
     """Every certificate in ``folder`` except the authority's, checked against it."""
-    x509, _, _, _, _, name_oid = _crypto()
+    c = _crypto()
     ca_path = folder / f"{CA_NAME}.pem"
     if not ca_path.is_file():
         raise ConfigError(f"no {ca_path}: not a certificate folder (openptrack certs init)")
-    authority = x509.load_pem_x509_certificate(ca_path.read_bytes())
+    authority = c.x509.load_pem_x509_certificate(ca_path.read_bytes())
     out = []
     for path in sorted(folder.glob("*.pem")):
         if path.stem == CA_NAME:
             continue
-        cert = x509.load_pem_x509_certificate(path.read_bytes())
+        cert = c.x509.load_pem_x509_certificate(path.read_bytes())
         try:
             cert.verify_directly_issued_by(authority)
             signed = True
-        except (ValueError, TypeError, Exception):  # InvalidSignature has no common base
+        except (ValueError, TypeError, c.InvalidSignature):  # wrong issuer, key, signature
             signed = False
         try:
-            sans = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
-            hosts = tuple(str(v) for v in sans.get_values_for_type(x509.DNSName)) + tuple(
-                str(v) for v in sans.get_values_for_type(x509.IPAddress)
+            sans = cert.extensions.get_extension_for_class(c.x509.SubjectAlternativeName).value
+            hosts = tuple(str(v) for v in sans.get_values_for_type(c.x509.DNSName)) + tuple(
+                str(v) for v in sans.get_values_for_type(c.x509.IPAddress)
             )
-        except x509.ExtensionNotFound:
+        except c.x509.ExtensionNotFound:
             hosts = ()
-        common = cert.subject.get_attributes_for_oid(name_oid.COMMON_NAME)
+        common = cert.subject.get_attributes_for_oid(c.oid.COMMON_NAME)
         out.append(
             CertificateInfo(
                 name=str(common[0].value) if common else path.stem,

@@ -27,25 +27,21 @@ from __future__ import annotations
 from typing import Any
 
 from openptrack_py.config import NetworkConfig
+from openptrack_py.config.network import (
+    LAUNCHER,
+    OPERATOR,
+    RECORDER,
+    SIM,
+    TRACKER,
+    detector_node_name,
+)
 from openptrack_py.security.pki import Identity
 from openptrack_py.transport.keys import SiteKeys
 
 MEMBER = "member"
 """Subject id of every identity of the site."""
-LAUNCHER = "launcher"
-"""Identity of ``openptrack launch`` (its hub session and status board)."""
-OPERATOR = "operator"
-"""Default identity of the command-line tools (``config``, ``status``, ``echo``)."""
-SIM = "sim"
-TRACKER = "tracker"
-RECORDER = "record"
 INFRASTRUCTURE = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_query")
 """Messages every member may exchange: they read, they do not write data."""
-
-
-def detector_name(sensor_id: str) -> str:
-    """Node name (and identity) of a sensor's detector."""
-    return f"detector_{sensor_id}"
 
 
 def put_keys(network: NetworkConfig) -> dict[str, list[str]]:
@@ -64,7 +60,7 @@ def put_keys(network: NetworkConfig) -> dict[str, list[str]]:
         if sensor.source != "sim" or (
             network.sim is not None and network.sim.sensor_model == "rgbd"
         ):
-            allowed[detector_name(sensor.id)] = [keys.detections(sensor.id)]
+            allowed[detector_node_name(sensor.id)] = [keys.detections(sensor.id)]
     if network.tracker is not None:
         allowed[TRACKER] = [keys.tracks]
     for out in network.outputs:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import time
 
 from openptrack_py.config import NetworkConfig
@@ -115,18 +116,21 @@ class LivePlayer:
                 }
             },
         )
-        limit = self.max_capture_lag_s
 
-        def behind(capture: float) -> bool:
-            lagging = time.time() - (start + (capture - start) / self.speed) > limit  # type: ignore[operator]
+        def due(t: float) -> float:
+            """Wall-clock time at which played time ``t`` happens."""
+            return start + (t - start) / self.speed
+
+        def behind(capture: float, limit: float) -> bool:
+            lagging = time.time() - due(capture) > limit
             if lagging:
                 counters.inc("skipped")
             return lagging
 
-        guard = behind if limit is not None else None
+        limit = self.max_capture_lag_s
+        guard = None if limit is None else functools.partial(behind, limit=limit)
         for event in sim.events(sensor_frames=self.publish_detections, skip_capture=guard):
-            due = start + (event.time - start) / self.speed
-            delay = due - time.time()
+            delay = due(event.time) - time.time()
             if delay > 0:
                 if self.node.wait(delay):
                     break

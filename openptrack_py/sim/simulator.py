@@ -227,22 +227,21 @@ class Simulator:
                 continue
             while pending and pending[0][0] <= self.start_time + t:
                 yield heapq.heappop(pending)[3]
-            snap = self.world.state_at(t)
+            capture = self.start_time + t
             if source == _TRUTH:
-                yield TruthFrame(self.start_time + t, self.truth(snap, k))
+                yield TruthFrame(capture, self.truth(self.world.state_at(t), k))
                 heapq.heappush(captures, ((k + 1) / self.ground_truth_rate_hz, _TRUTH, k + 1))
                 continue
             model = self.models[source]
             spec = model.spec
             heapq.heappush(captures, (spec.phase_s + (k + 1) / spec.rate_hz, source, k + 1))
-            if skip_capture is not None and skip_capture(self.start_time + t):
-                continue
-            observation = model.observe(snap)
+            if skip_capture is not None and skip_capture(capture):
+                continue  # skipped unobserved: not even the world's state is computed
+            observation = model.observe(self.world.state_at(t))
             frame_rng = self._frame_rngs[source]
             latency = max(0.0, spec.latency_s + frame_rng.normal(0.0, spec.latency_jitter_s))
             if frame_rng.random() < spec.frame_drop_probability:
                 continue  # lost frame: its seq number is never published
-            capture = self.start_time + t
             arrival = max(capture + latency, last_arrival[source])
             last_arrival[source] = arrival
             batch = DetectionBatch(

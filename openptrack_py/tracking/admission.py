@@ -155,6 +155,16 @@ class Admission:
         self.counters["detections_capped"] += excess
         return batch
 
+    def carry_over(self, previous: Admission) -> None:
+        """Continue ``previous`` after a reconfiguration.
+
+        Its counts carry over, and what it learned of each sensor's clock and rate when
+        both track the same frame.
+        """
+        self.counters = previous.counters
+        if previous.frame_id == self.frame_id:
+            self._sensors = previous._sensors
+
     def sensors(self) -> list[str]:
         """The sensors heard from and not forgotten."""
         return sorted(self._sensors)

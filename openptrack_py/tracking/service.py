@@ -226,9 +226,7 @@ class TrackerService:
         if new.clock_correction != self.config.clock_correction:
             self.pipeline.aligner = ClockAligner() if new.clock_correction == "arrival" else None
         fresh = build_admission(self.network, new)
-        fresh.counters = self.admission.counters
-        if fresh.frame_id == self.admission.frame_id:
-            fresh._sensors = self.admission._sensors  # keep what is known of each clock
+        fresh.carry_over(self.admission)
         self.admission = fresh
         tracker.frame_id = fresh.frame_id
         self.config = new
@@ -270,9 +268,9 @@ class TrackerService:
         with self.node.counters.timed("step"):
             for item in self._batches.drain(timeout=timeout_s):
                 batch = self._admit(item, time.time())
-                if batch is not None and self._pending is not None:
-                    self._resume_tracks(batch)
                 if batch is not None:
+                    if self._pending is not None:
+                        self._resume_tracks(batch)
                     results += self.pipeline.push(batch, item.received)
             results += self.pipeline.poll(time.time())
         self._publish(results)

@@ -163,10 +163,7 @@ def check_resolvable(
         Naming the key, the endpoint and the resolver's answer (instead of Zenoh's
         error from deep inside its runtime).
     """
-    named = [("zenoh.hub", cfg.hub)] if cfg.hub else []
-    named += [("zenoh.listen", e) for e in (cfg.listen if listen is None else listen)]
-    named += [("zenoh.connect", e) for e in (cfg.connect if connect is None else connect)]
-    for key, endpoint in named:
+    for key, endpoint in cfg.named_endpoints(listen, connect):
         protocol, _, address = endpoint.partition("/")
         if protocol not in NETWORK_PROTOCOLS:
             continue
