@@ -64,10 +64,11 @@ def test_the_golden_bundle_reads_back_as_documented() -> None:
             ("/opt/track", [t.id, *map(_f32, (t.x, t.y, t.height, t.age, t.confidence))])
             for t in TRACKS
         ),
+        ("/opt/identity", [200, 4, "alice"]),  # only tracks with a stable identity
         ("/opt/alive", [170, 171, 200, 201]),
     ]
     types = [[type(p) for p in params] for _, params in messages]
-    assert types == [[int] * 5, *[[int] + [float] * 5] * 3, [int] * 4]  # int32, float32
+    assert types == [[int] * 5, *[[int] + [float] * 5] * 3, [int, int, str], [int] * 4]
     assert str(messages[2][1][2]) == "-0.0"  # negative zero survives
 
 

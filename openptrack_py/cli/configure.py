@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"openptrack config: {item!r}: expected key=value", file=sys.stderr)
             return EXIT_CONFIG
         changes[key.removeprefix(f"{args.node}.")] = parse_override_value(text)
-    ack = _ask(args, changes)
+    ack = ask_node(args, args.node, changes)
     if ack is None:
         return 1
     if args.format == "json":
@@ -76,8 +76,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _ask(args: argparse.Namespace, changes: dict[str, Any]) -> ConfigAck | None:
-    """Publish the update to the node and return its answer (None, said on stderr, if none)."""
+def ask_node(args: argparse.Namespace, node: str, changes: dict[str, Any]) -> ConfigAck | None:
+    """Publish an update to ``node`` and return its answer (None, said on stderr, if none)."""
     import uuid
 
     from openptrack_py.messages.codec import decode_config_ack, encode_config_update
@@ -90,11 +90,11 @@ def _ask(args: argparse.Namespace, changes: dict[str, Any]) -> ConfigAck | None:
     request = ConfigUpdate(id=uuid.uuid4().hex[:16], set=changes)
     acks: Inbox[bytes] = Inbox(100)
     with bus_from_args(cfg, args) as bus:
-        sub = bus.subscribe(keys.config_ack(args.node), lambda s: acks.push(s.payload))
-        pub = bus.publisher(keys.config(args.node))
+        sub = bus.subscribe(keys.config_ack(node), lambda s: acks.push(s.payload))
+        pub = bus.publisher(keys.config(node))
         if not wait_for_subscribers(pub, args.timeout):
             print(
-                f"openptrack config: no node {args.node!r} listens on {keys.config(args.node)}",
+                f"openptrack config: no node {node!r} listens on {keys.config(node)}",
                 file=sys.stderr,
             )
             return None
@@ -115,7 +115,7 @@ def _ask(args: argparse.Namespace, changes: dict[str, Any]) -> ConfigAck | None:
         pub.close()
     if ack is None:
         print(
-            f"openptrack config: {args.node!r} did not answer in {args.timeout:g} s",
+            f"openptrack config: {node!r} did not answer in {args.timeout:g} s",
             file=sys.stderr,
         )
     return ack

@@ -27,6 +27,7 @@ from openptrack_py.config.detector import (
     GroundConfig,
     HogConfig,
 )
+from openptrack_py.config.identity import IdentityConfig
 from openptrack_py.config.loading import (
     apply_overrides,
     load_config,
@@ -60,6 +61,7 @@ __all__ = [
     "DetectorConfig",
     "GroundConfig",
     "HogConfig",
+    "IdentityConfig",
     "Name",
     "NetworkConfig",
     "OscSinkConfig",

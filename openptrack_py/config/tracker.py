@@ -8,6 +8,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from openptrack_py.config.base import Name, StrictModel
+from openptrack_py.config.identity import IdentityConfig
 
 
 class TrackerConfig(StrictModel):
@@ -196,6 +197,9 @@ class TrackerConfig(StrictModel):
         See ``state_dir``.
     resume_within_s : float
         A checkpoint at most this old resumes its tracks; an older one only the ids.
+    identity : IdentityConfig
+        Appearance in association, re-identification and named people (off by
+        default: ``identity.enabled=true``).
     max_latency_s : float
         Load shedding: a batch that waited longer than this before the tracker could
         take it is dropped (``shed``), so latency stays bounded when the tracker falls
@@ -259,6 +263,7 @@ class TrackerConfig(StrictModel):
     checkpoint_interval_s: float = Field(1.0, gt=0.0, le=3600.0)
     resume_within_s: float = Field(30.0, ge=0.0, le=86400.0)
     max_latency_s: float = Field(0.25, gt=0.0, le=60.0)
+    identity: IdentityConfig = Field(default_factory=IdentityConfig)
 
     @model_validator(mode="after")
     def _birth_gate_outside_gate(self) -> TrackerConfig:

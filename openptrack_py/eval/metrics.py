@@ -70,6 +70,7 @@ from openptrack_py.eval.matching import (
     max_matching_min_cost,
     pairwise_distances,
 )
+from openptrack_py.eval.returns import ReturnLog
 
 __all__ = ["DUPLICATE_GAP_S", "DUPLICATE_MIN_S", "MotAccumulator", "MotMetrics", "distance_matrix"]
 
@@ -132,6 +133,12 @@ class MotMetrics:
         matched) that last longer than ``duplicate_min_s``.
     duplicate_s : float
         Total duration of those episodes, seconds.
+    returns : int
+        People who came back after :data:`~openptrack_py.eval.returns.MIN_ABSENCE_S`
+        out of view, matched before leaving and after coming back.
+    returns_kept : int
+        Those matched to the same hypothesis id before and after (their identity was
+        recognised; see :mod:`openptrack_py.eval.returns`).
     """
 
     mota: float
@@ -156,6 +163,8 @@ class MotMetrics:
     mostly_lost: int
     duplicates: int
     duplicate_s: float
+    returns: int = 0
+    returns_kept: int = 0
 
     def to_dict(self) -> dict[str, float | int | None]:
         """Return the metrics as a JSON-friendly dictionary.
@@ -223,6 +232,7 @@ class MotAccumulator:
     ) -> None:
         self._max_distance_m = check_max_distance(max_distance_m)
         self._duplicates = DuplicateLog(duplicate_min_s, duplicate_gap_s)
+        self._returns = ReturnLog()
         if not (math.isfinite(frame_rate_hz) and frame_rate_hz > 0.0):
             raise ValueError(f"frame_rate_hz must be a finite number > 0; got {frame_rate_hz!r}")
         self._frame_period_s = 1.0 / frame_rate_hz
@@ -368,6 +378,10 @@ class MotAccumulator:
             if matches and matches < m:
                 t = self._frames * self._frame_period_s if time_s is None else float(time_s)
                 self._duplicates.add_frame(t, gt, hyp, dist, gt_match >= 0, hyp_taken)
+        t_frame = self._frames * self._frame_period_s if time_s is None else float(time_s)
+        matched_hyp = np.full(n, -1, dtype=np.int64)
+        matched_hyp[gt_match >= 0] = hyp[gt_match[gt_match >= 0]]
+        self._returns.add_frame(t_frame, gt, matched_hyp)
         self._frames += 1
         self._matches += matches
         self._distance_sum += matched_distances
@@ -411,6 +425,7 @@ class MotAccumulator:
         idtp = identity_true_positives(gt_uniq, gt_frames, hyp_uniq, hyp_frames, pair_gt, pair_hyp)
 
         duplicates, duplicate_s = self._duplicates.episodes()
+        returns, returns_kept = self._returns.returns()
         matches = self._matches
         errors = self._fn + self._fp + self._switches
         return MotMetrics(
@@ -436,6 +451,8 @@ class MotAccumulator:
             mostly_lost=mostly_lost,
             duplicates=duplicates,
             duplicate_s=duplicate_s,
+            returns=returns,
+            returns_kept=returns_kept,
         )
 
 

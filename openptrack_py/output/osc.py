@@ -7,10 +7,13 @@ One bundle per frame (time tag "immediately"), holding, under a configurable pre
 ``/opt/frame``     ``seq sec nsec count max_id`` (int32 each)
 ``/opt/track``     ``id x y height age confidence`` (int32, then float32), one
                    message per track
+``/opt/identity``  ``id stable_id name`` (int32, int32, string; ``name`` empty when
+                   the person is not registered), one message per track with a
+                   stable identity (the tracker's identity role is on)
 ``/opt/alive``     the ids of every live track (int32 each; no argument when none)
 =================  ============================================================
 
-Max: ``[udpreceive 7000]`` -> ``[route /opt/track /opt/frame /opt/alive]``.
+Max: ``[udpreceive 7000]`` -> ``[route /opt/track /opt/frame /opt/identity /opt/alive]``.
 TouchDesigner: an OSC In DAT on port 7000. Processing: oscP5, ``checkAddrPattern``.
 OSC floats are 32-bit: 1.7 arrives as 1.70000005.
 """
@@ -63,6 +66,14 @@ def build_bundle(frame: TrackBatch, seq: int, prefix: str = "/opt") -> bytes:
                 ],
             )
         )
+    for t in frame.tracks:
+        if t.stable_id is not None:
+            bundle.add_content(
+                _message(
+                    f"{prefix}/identity",
+                    [(t.id, "i"), (t.stable_id, "i"), (t.identity or "", "s")],
+                )
+            )
     bundle.add_content(_message(f"{prefix}/alive", [(i, "i") for i in frame.alive_ids]))
     return bundle.build().dgram
 

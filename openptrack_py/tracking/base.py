@@ -182,6 +182,9 @@ class IdentityModel(Protocol):
     admissible pairs only); it never admits a pair the gate rejects.
     """
 
+    needs_looks: bool
+    """Whether the tracker must read the detections' looks (``DetectionArrays.looks``)."""
+
     def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
         """Extra cost ``(N, M)`` of each pair, or ``None`` for no opinion."""
 
@@ -200,8 +203,14 @@ class IdentityModel(Protocol):
     ) -> None:
         """Tracks ``rows`` were just started from detections of ``dets``."""
 
-    def ended(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
-        """Tracks ``rows`` are about to be deleted at time ``t``."""
+    def ended(
+        self, table: TrackTable, rows: np.ndarray, t: float, reason: str = "deleted"
+    ) -> None:
+        """Tracks ``rows`` are about to be removed at time ``t``.
+
+        ``reason``: ``"deleted"`` (lost), ``"merged"`` (folded into another track) or
+        ``"reattached"`` (its person continues under an older track's id).
+        """
 
     def annotate(self, tracks: list[Track]) -> list[Track]:
         """The output tracks with their ``stable_id`` / ``identity`` filled in."""

@@ -13,9 +13,9 @@ from scipy.stats import chi2
 
 from openptrack_py.config import TrackerConfig
 from openptrack_py.tracking.association import GlobalNearestNeighbour
-from openptrack_py.tracking.base import MeasurementModel
+from openptrack_py.tracking.base import IdentityModel, MeasurementModel
 from openptrack_py.tracking.gating import ChiSquareGater
-from openptrack_py.tracking.identity import NullIdentity
+from openptrack_py.tracking.identity import AppearanceIdentity, NullIdentity, load_roster
 from openptrack_py.tracking.lifecycle import ConfidenceInitiator, TimeDeleter
 from openptrack_py.tracking.measurement import PositionMeasurement, PositionVelocityMeasurement
 from openptrack_py.tracking.merging import TrackMerger
@@ -63,7 +63,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
         merger=TrackMerger(
             cfg.merge_distance_m, cfg.merge_after_s, cfg.merge_max_speed_difference_mps
         ),
-        identity=NullIdentity(),
+        identity=build_identity(cfg),
         params=TrackerParams(
             detector_weight=cfg.detector_weight,
             min_confidence_detections=cfg.min_confidence_detections,
@@ -91,3 +91,12 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             ),
         ),
     )
+
+
+def build_identity(config: TrackerConfig) -> IdentityModel:
+    """The identity role ``config.identity`` asks for, with its roster loaded."""
+    cfg = config.identity
+    if not cfg.enabled:
+        return NullIdentity()
+    roster = load_roster(cfg.roster_file) if cfg.roster_file is not None else None
+    return AppearanceIdentity(cfg, roster)

@@ -17,13 +17,17 @@ Live reconfiguration: a :class:`~openptrack_py.messages.ConfigUpdate` put on
 (tracks, ids and clock are kept). Every request is answered on
 ``opt/<site>/config/<node>/ack`` with whether it was applied, why not, and the
 parameters in force. An invalid request changes nothing and never stops the node.
+Nested parameters are set by dotted name (``identity.enabled=true``). Roster requests
+(``openptrack roster``) come the same way (:mod:`~openptrack_py.tracking.roster_service`).
 """
 
 from __future__ import annotations
 
 import time
 
-from openptrack_py.config import NetworkConfig, TrackerConfig, validate_config
+import orjson
+
+from openptrack_py.config import NetworkConfig, TrackerConfig, apply_overrides, validate_config
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages.codec import (
     decode_config_update,
@@ -45,6 +49,7 @@ from openptrack_py.tracking.checkpoint import (
 from openptrack_py.tracking.factory import build_tracker
 from openptrack_py.tracking.ordering import ClockAligner
 from openptrack_py.tracking.pipeline import TrackingPipeline
+from openptrack_py.tracking.roster_service import ROSTER_KEY, RosterKeeper
 
 RESUME_MARGIN_S = 0.1
 """Resumed tracks are as of this long before the first batch after a restart (its stamp
@@ -142,6 +147,7 @@ class TrackerService:
         self._tracks = node.publisher(keys.tracks)
         self._acks = node.publisher(keys.config_ack(node.name))
         self._reported: dict[str, int] = {}
+        self._roster = RosterKeeper(config.identity.roster_file)
 
     # ----------------------------------------------------------------- checkpoints
 
@@ -194,11 +200,16 @@ class TrackerService:
 
     def apply(self, update: ConfigUpdate) -> ConfigAck:
         """Validate and apply an update; return the acknowledgement to send."""
+        if ROSTER_KEY in update.set:
+            return self._roster_request(update)
         fixed = sorted(FIXED_WHILE_RUNNING & set(update.set))
         try:
             if fixed:
                 raise ConfigError(f"{', '.join(fixed)}: cannot be changed while running")
-            merged = {**self.config.model_dump(), **update.set}
+            merged = apply_overrides(
+                self.config.model_dump(),
+                [f"{k}={orjson.dumps(v).decode()}" for k, v in update.set.items()],
+            )
             new = validate_config(TrackerConfig, merged, f"config/{self.node.name}")
         except ConfigError as exc:
             self.node.counters.inc("config_rejected")
@@ -215,6 +226,18 @@ class TrackerService:
             )
         return ConfigAck(update.id, self.node.name, True, "", self._dump())
 
+    def _roster_request(self, update: ConfigUpdate) -> ConfigAck:
+        """Apply a roster request (``openptrack roster``) and answer it."""
+        try:
+            if len(update.set) != 1:
+                raise ConfigError("roster: a roster request changes nothing else")
+            listing = self._roster.request(self.pipeline.tracker.identity, update.set[ROSTER_KEY])
+        except ConfigError as exc:
+            self.node.counters.inc("roster_rejected")
+            return ConfigAck(update.id, self.node.name, False, str(exc), {})
+        self.node.log.info("roster request", extra={"fields": {"id": update.id}})
+        return ConfigAck(update.id, self.node.name, True, "", listing)
+
     def _dump(self) -> dict:
         return self.config.model_dump(mode="json")
 
@@ -230,6 +253,7 @@ class TrackerService:
         self.admission = fresh
         tracker.frame_id = fresh.frame_id
         self.config = new
+        self._roster = RosterKeeper(new.identity.roster_file)
 
     # ---------------------------------------------------------------------- loop
 
@@ -276,6 +300,10 @@ class TrackerService:
         self._publish(results)
         self._report_counters()
         self._checkpoint()
+        problem = self._roster.reload_if_changed(self.pipeline.tracker.identity)
+        if problem:
+            self.node.counters.inc("roster_errors")
+            self.node.bad_input.warning("roster", f"roster file not loaded: {problem}")
         return len(results)
 
     def run(self) -> None:

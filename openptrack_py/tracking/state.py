@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from openptrack_py.messages.detection import DetectionBatch
+from openptrack_py.messages.detection import Detection, DetectionBatch
 
 HISTORY = 48
 """Past positions kept per track (for the velocity measurement)."""
@@ -25,6 +25,96 @@ SENSOR_SLOTS = 16
 def sensor_slot(sensor_index: int) -> int:
     """The column of ``TrackTable.sensor_hit_t`` of a sensor (by index)."""
     return min(sensor_index, SENSOR_SLOTS - 1)
+
+
+def _common_length(vectors: list[tuple | None]) -> int:
+    """The most frequent length among the vectors present (0 when none)."""
+    lengths = [len(v) for v in vectors if v]
+    return max(set(lengths), key=lengths.count) if lengths else 0
+
+
+def _unit_rows(vectors: list[tuple | None], dim: int, norm: str) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of the vectors of length ``dim`` scaled to unit ``norm`` ("l1" or "l2")."""
+    out = np.zeros((len(vectors), dim))
+    ok = np.array([bool(v) and len(v) == dim for v in vectors], dtype=bool)
+    if ok.any():
+        rows = np.array([v for v, good in zip(vectors, ok, strict=True) if good], dtype=float)
+        scale = np.abs(rows).sum(axis=1) if norm == "l1" else np.linalg.norm(rows, axis=1)
+        good = scale > 0
+        rows[good] /= scale[good, None]
+        out[ok] = rows
+        ok[np.flatnonzero(ok)[~good]] = False
+    return out, ok
+
+
+@dataclass(frozen=True)
+class Looks:
+    """What a batch's detections look like: colour signatures and identity embeddings.
+
+    Parameters
+    ----------
+    signature : ndarray
+        ``(M, B)`` colour signatures scaled to sum to 1 (zeros where there is none).
+    has_signature : ndarray of bool
+        Whether each detection has a signature of the batch's common length.
+    clean : ndarray of bool
+        Whether each detection's image box is free of any nearer detection's box: a
+        half-hidden person's colours are mixed with those of the one in front.
+    embedding : ndarray
+        ``(M, D)`` identity embeddings (``face``) scaled to unit length (zeros: none).
+    embedding_weight : ndarray
+        Confidence of each embedding (``face_confidence``, 1 when not given; 0: none).
+    """
+
+    signature: np.ndarray
+    has_signature: np.ndarray
+    clean: np.ndarray
+    embedding: np.ndarray
+    embedding_weight: np.ndarray
+
+    def subset(self, rows: np.ndarray) -> Looks:
+        """The looks of the detections at ``rows``."""
+        return Looks(
+            self.signature[rows], self.has_signature[rows], self.clean[rows],
+            self.embedding[rows], self.embedding_weight[rows],
+        )  # fmt: skip
+
+    @classmethod
+    def of(cls, detections: list[Detection]) -> Looks:
+        """The looks of ``detections`` (one batch)."""
+        sigs = [d.appearance for d in detections]
+        signature, has_signature = _unit_rows(sigs, _common_length(sigs), "l1")
+        faces = [d.face for d in detections]
+        embedding, has_face = _unit_rows(faces, _common_length(faces), "l2")
+        weight = np.array(
+            [_face_weight(d) if ok else 0.0 for d, ok in zip(detections, has_face, strict=True)]
+        )
+        return cls(signature, has_signature, _unoccluded(detections), embedding, weight)
+
+
+def _face_weight(detection: Detection) -> float:
+    """Confidence of a detection's embedding (1 when the detector gives none)."""
+    conf = getattr(detection, "face_confidence", None)
+    return 1.0 if conf is None else float(conf)
+
+
+def _unoccluded(detections: list[Detection]) -> np.ndarray:
+    """Whether each detection's box overlaps no box of a nearer detection."""
+    n = len(detections)
+    clean = np.ones(n, dtype=bool)
+    boxed = [i for i, d in enumerate(detections) if d.bbox is not None]
+    if len(boxed) < 2:
+        return clean
+    b = np.array([detections[i].bbox for i in boxed], dtype=float)
+    dist = np.array([detections[i].distance for i in boxed])
+    u0, v0, u1, v1 = b[:, 0], b[:, 1], b[:, 0] + b[:, 2], b[:, 1] + b[:, 3]
+    overlap = (np.minimum(u1[:, None], u1[None, :]) > np.maximum(u0[:, None], u0[None, :])) & (
+        np.minimum(v1[:, None], v1[None, :]) > np.maximum(v0[:, None], v0[None, :])
+    )
+    np.fill_diagonal(overlap, False)
+    behind = (overlap & (dist[None, :] < dist[:, None])).any(axis=1)
+    clean[np.array(boxed)[behind]] = False
+    return clean
 
 
 @dataclass(frozen=True)
@@ -41,6 +131,8 @@ class DetectionArrays:
         The sensor of the batch.
     seq : int
         The batch's sequence number.
+    looks : Looks or None
+        Colour signatures and identity embeddings, when an identity role asked for them.
     """
 
     index: np.ndarray
@@ -51,6 +143,7 @@ class DetectionArrays:
     distance: np.ndarray
     sensor_id: str = ""
     seq: int = -1
+    looks: Looks | None = None
 
     def __len__(self) -> int:
         return len(self.index)
@@ -66,17 +159,29 @@ class DetectionArrays:
             distance=self.distance[rows],
             sensor_id=self.sensor_id,
             seq=self.seq,
+            looks=None if self.looks is None else self.looks.subset(rows),
         )
 
     @classmethod
-    def from_batch(cls, batch: DetectionBatch, min_confidence: float) -> DetectionArrays:
-        """Arrays of the batch's detections at least ``min_confidence`` confident."""
+    def from_batch(
+        cls, batch: DetectionBatch, min_confidence: float, looks: bool = False
+    ) -> DetectionArrays:
+        """Arrays of the batch's detections at least ``min_confidence`` confident.
+
+        ``looks``: also their :class:`Looks` (occlusion judged among all the batch's
+        detections).
+        """
         kept = [(i, d) for i, d in enumerate(batch.detections) if d.confidence >= min_confidence]
+        seen = None
+        if looks:
+            seen = Looks.of(list(batch.detections)).subset(
+                np.array([i for i, _ in kept], dtype=int)
+            )
         if not kept:
             empty = np.zeros(0)
             return cls(
                 np.zeros(0, dtype=int), np.zeros((0, 2)), empty, empty, empty, empty,
-                batch.sensor_id, batch.seq,
+                batch.sensor_id, batch.seq, seen,
             )  # fmt: skip
         rows = np.array([(d.x, d.y, d.z, d.height, d.confidence, d.distance) for _, d in kept])
         return cls(
@@ -88,6 +193,7 @@ class DetectionArrays:
             distance=rows[:, 5],
             sensor_id=batch.sensor_id,
             seq=batch.seq,
+            looks=seen,
         )
 
 

@@ -53,7 +53,7 @@ from openptrack_py.tracking.bookkeeping import (
     update_support,
 )
 from openptrack_py.tracking.gating import mahalanobis
-from openptrack_py.tracking.identity import NullIdentity
+from openptrack_py.tracking.identity.null import NullIdentity
 from openptrack_py.tracking.merging import NoMerging
 from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.publish import published_tracks
@@ -264,7 +264,9 @@ class Tracker:
         t = batch.stamp
         if self.params.late_policy == "replay" and self.history.max_lateness_s > 0:
             self.history.remember(t, self._snapshot(), batch)
-        dets = DetectionArrays.from_batch(batch, self.params.min_confidence_detections)
+        dets = DetectionArrays.from_batch(
+            batch, self.params.min_confidence_detections, self.identity.needs_looks
+        )
         dets = self.sensors.correct(dets)
         self._predict_to(t)
         assigned, d2 = self._associate_and_update(dets, t)
@@ -472,7 +474,7 @@ class Tracker:
         pairs = self.merger.merge(self.table, t)
         if pairs:
             keep, drop = (np.array(rows) for rows in zip(*pairs, strict=True))
-            self.identity.ended(self.table, drop, t)
+            self.identity.ended(self.table, drop, t, "merged")
             fold_into(self.table, keep, drop)
             self.counters["tracks_merged"] += len(drop)
             self.counters["tracks_deleted"] += len(drop)
@@ -482,7 +484,7 @@ class Tracker:
         pairs = self.merger.reattach(self.table, t, new, self.params.visibility_timeout_s)
         if pairs:
             lost, found = (np.array(rows) for rows in zip(*pairs, strict=True))
-            self.identity.ended(self.table, found, t)
+            self.identity.ended(self.table, found, t, "reattached")
             take_over(self.table, lost, found)
             self.counters["tracks_reattached"] += len(pairs)
             self.counters["tracks_deleted"] += len(pairs)

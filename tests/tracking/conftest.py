@@ -151,6 +151,7 @@ class ForgetfulIdentity:
     """
 
     counts: dict[int, int] = field(default_factory=dict)
+    needs_looks = False
 
     def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
         return None
@@ -172,7 +173,9 @@ class ForgetfulIdentity:
         for ident in table.ids[rows].tolist():
             self.counts[ident] = 1
 
-    def ended(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+    def ended(
+        self, table: TrackTable, rows: np.ndarray, t: float, reason: str = "deleted"
+    ) -> None:
         for ident in table.ids[rows].tolist():
             self.counts.pop(ident, None)
 

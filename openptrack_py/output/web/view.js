@@ -85,11 +85,11 @@ function draw() {
     ctx.beginPath();
     ctx.arc(v.px(t.x), v.py(t.y), Math.max(5 * v.dpr, 0.22 * v.scale), 0, 2 * Math.PI);
     ctx.fill();
-    label(String(t.id), v.px(t.x) + 0.25 * v.scale, v.py(t.y) - 0.25 * v.scale, "#fff", v.dpr);
+    label(trackLabel(t), v.px(t.x) + 0.25 * v.scale, v.py(t.y) - 0.25 * v.scale, "#fff", v.dpr);
   }
   el("state").textContent = JSON.stringify({
     frames,
-    tracks: tracks.map((t) => ({ id: t.id, x: t.x, y: t.y })),
+    tracks: tracks.map((t) => ({ id: t.id, x: t.x, y: t.y, label: trackLabel(t) })),
   });
 
   function line(ax, ay, bx, by) {
@@ -98,6 +98,13 @@ function draw() {
     ctx.lineTo(bx, by);
     ctx.stroke();
   }
+}
+
+// a registered person's name; else the stable identity when it differs from the track id
+function trackLabel(t) {
+  if (t.identity) return `${t.identity} (${t.id})`;
+  if (t.stable_id != null && t.stable_id !== t.id) return `${t.id} \u2192 ${t.stable_id}`;
+  return String(t.id);
 }
 
 function label(text, x, y, fill, dpr) {

@@ -16,6 +16,8 @@ from openptrack_py.tracking.state import DetectionArrays, TrackTable
 class NullIdentity:
     """An identity role that has no opinion and keeps no state."""
 
+    needs_looks = False
+
     def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
         """No extra association cost."""
         return None
@@ -35,7 +37,9 @@ class NullIdentity:
     ) -> None:
         """Nothing to set up."""
 
-    def ended(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+    def ended(
+        self, table: TrackTable, rows: np.ndarray, t: float, reason: str = "deleted"
+    ) -> None:
         """Nothing to forget."""
 
     def annotate(self, tracks: list[Track]) -> list[Track]:

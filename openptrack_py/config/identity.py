@@ -1,0 +1,80 @@
+"""The ``tracker.identity`` section: appearance, re-identification and the roster."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+
+from openptrack_py.config.base import StrictModel
+
+
+class IdentityConfig(StrictModel):
+    """Who each track is: appearance in association, re-identification, named people.
+
+    Off by default; ``enabled: true`` turns every part on with these settings. Nothing
+    here is a similarity threshold: how alike two signatures of one person are, and of
+    two people, is learned online from the tracker's own unambiguous associations, so
+    the same settings hold whether people dress alike or not.
+
+    Parameters
+    ----------
+    enabled : bool
+        Use the identity role (otherwise tracks carry no ``stable_id`` or name).
+    appearance_weight : float
+        Weight of the colour signature's log-likelihood ratio in the association cost
+        (the motion term's weight is 1; the childcare tracking paper's weighted
+        combination of motion, colour and face likelihoods).
+    embedding_weight : float
+        Weight of an identity embedding's (``face``) log-likelihood ratio, multiplied by
+        the embedding's own confidence.
+    max_llr : float
+        Largest absolute log-likelihood ratio one observation contributes.
+    min_observations : int
+        Clean observations a track's appearance model needs before it is used.
+    model_rate : float
+        Weight of a new observation in a track's appearance model (exponential average).
+    clean_min_confidence : float
+        Only detections at least this confident, whose image box overlaps no other
+        detection's, teach a track's appearance (a half-hidden person's colours are
+        mixed with the one in front).
+    pool_s : float
+        How long a lost confirmed identity waits in the pool to be recognised again.
+    reid_window_s : float
+        A new track may take back a pooled identity during its first this-many seconds.
+    reid_max_speed_mps : float
+        A pooled identity may only be taken by a track that starts where its person
+        could have walked to at this speed since it was lost (plus ``reid_margin_m``).
+    reid_margin_m : float
+        See ``reid_max_speed_mps``.
+    evidence_per_observation : float
+        Share of an observation's log-likelihood ratio that counts as independent
+        evidence (successive frames of one person are strongly correlated).
+    link_evidence : float
+        Accumulated log-likelihood ratio a track needs to take a pooled identity or a
+        registered name; it must also beat the second best by ``link_margin``.
+    link_margin : float
+        See ``link_evidence``.
+    unlink_evidence : float
+        A link is undone when its evidence falls to this (later observations contradict
+        it), and the identity returns to the pool.
+    roster_file : Path or None
+        YAML file of registered people (``openptrack roster``); reloaded when it changes.
+    """
+
+    enabled: bool = False
+    appearance_weight: float = Field(1.0, ge=0.0, le=10.0)
+    embedding_weight: float = Field(1.0, ge=0.0, le=10.0)
+    max_llr: float = Field(3.0, gt=0.0, le=20.0)
+    min_observations: int = Field(3, ge=1, le=1000)
+    model_rate: float = Field(0.05, gt=0.0, le=1.0)
+    clean_min_confidence: float = Field(0.5, ge=0.0, le=1.0)
+    pool_s: float = Field(180.0, ge=0.0, le=86400.0)
+    reid_window_s: float = Field(10.0, gt=0.0, le=3600.0)
+    reid_max_speed_mps: float = Field(2.5, gt=0.0, le=20.0)
+    reid_margin_m: float = Field(1.0, ge=0.0, le=100.0)
+    evidence_per_observation: float = Field(0.2, gt=0.0, le=1.0)
+    link_evidence: float = Field(3.0, gt=0.0, le=100.0)
+    link_margin: float = Field(2.0, ge=0.0, le=100.0)
+    unlink_evidence: float = Field(-1.0, le=0.0, ge=-100.0)
+    roster_file: Path | None = None

@@ -1,0 +1,466 @@
+"""The identity role: appearance in association, re-identification, registered names.
+
+:class:`AppearanceIdentity` takes the best of the field's identity schemes:
+
+* **Association** (DeepSORT's appearance term, the childcare tracking paper's weighted
+  combination of motion, colour and face likelihoods, Eq. 4-9): each gated pair's cost
+  gains ``-(w_c LLR_colour + w_f c LLR_embedding)``, the log-likelihood ratios of "same
+  person" learned online (:mod:`.likelihood`) and ``c`` the embedding's own confidence.
+  It is added to admissible pairs only, so appearance re-ranks what the gate admitted
+  and never admits anything.
+* **Models** learn only from clean detections: confident, and not behind another
+  detection in the image (a half-hidden person's colours are the neighbour's too).
+* **Re-identification** (OpenPTrack v2's pool of lost faces, norfair's dead tracks kept
+  for re-identification): a confirmed track that ends leaves its identity in a pool for
+  ``pool_s``; a young track gathers evidence for each pooled identity it could be
+  (one it could have walked to since), as a sequential test, and takes one back once the
+  evidence passes ``link_evidence`` and beats every rival by ``link_margin``, one-to-one
+  (Hungarian). Evidence keeps coming in during the track's first ``reid_window_s``; a
+  link it contradicts is undone and the identity goes back to the pool.
+* **Names** (the paper's registered children, v2's named faces): evidence for each
+  registered person accumulates the same way; names go to tracks one-to-one by a
+  Hungarian assignment over the evidence, with hysteresis, so no name is ever on two
+  tracks at once.
+
+All state is per track id, in arrays (:class:`~.models.TrackModels`), and is
+snapshotted for the tracker's late-batch replay and its checkpoint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from openptrack_py.config.identity import IdentityConfig
+from openptrack_py.messages.track import Track
+from openptrack_py.tracking.identity.likelihood import (
+    DistanceLikelihood,
+    cosine_distance,
+    hellinger,
+)
+from openptrack_py.tracking.identity.models import PooledIdentity, TrackModels
+from openptrack_py.tracking.identity.roster import Roster
+from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
+
+ISOLATION_M = 1.5
+"""A detection with no other track within this is certainly its own track's person (a
+"same" sample), and certainly not the person of a track farther than this."""
+MAX_DIFFERENT_SAMPLES = 64
+"""Different-person distances learned per step at most."""
+
+
+def _rowwise_hellinger(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    bc = (np.sqrt(np.maximum(a, 0.0)) * np.sqrt(np.maximum(b, 0.0))).sum(axis=1)
+    return np.sqrt(np.clip(1.0 - bc, 0.0, 1.0))
+
+
+def _rowwise_cosine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.clip((1.0 - (a * b).sum(axis=1)) / 2.0, 0.0, 1.0)
+
+
+class AppearanceIdentity:
+    """Identity from colour signatures and identity embeddings.
+
+    Parameters
+    ----------
+    config : IdentityConfig
+        Weights, windows and evidence levels.
+    roster : Roster, optional
+        Registered people.
+    """
+
+    needs_looks = True
+
+    def __init__(self, config: IdentityConfig, roster: Roster | None = None) -> None:
+        self.cfg = config
+        self.colour = DistanceLikelihood(config.max_llr)
+        self.face = DistanceLikelihood(config.max_llr)
+        self.models = TrackModels()
+        self.pool: tuple[PooledIdentity, ...] = ()
+        self.links: dict[int, PooledIdentity] = {}
+        self.reid_ev: dict[int, dict[int, float]] = {}
+        self.named: dict[int, int] = {}
+        self.roster = Roster()
+        self.counters = {"reidentified": 0, "unlinked": 0}
+        self.set_roster(roster or Roster())
+
+    # ------------------------------------------------------------------ roster
+
+    def set_roster(self, roster: Roster) -> None:
+        """Use ``roster`` from now on (evidence for names kept by name)."""
+        old = {name: k for k, name in enumerate(self.roster.names)}
+        mapping = np.array([old.get(name, -1) for name in roster.names], dtype=np.int64)
+        self.models.resize_names(mapping)
+        self.pool = tuple(replace(e, name_ev=_remap(e.name_ev, mapping)) for e in self.pool)
+        self.named = {
+            tid: int(np.flatnonzero(mapping == k)[0])
+            for tid, k in self.named.items()
+            if (mapping == k).any()
+        }
+        self.roster = roster
+
+    def looks_of(self, track_id: int) -> tuple[np.ndarray, float, np.ndarray] | None:
+        """A live track's colour model, its observation count and embedding model."""
+        row = self.models.rows(np.array([track_id]))[0]
+        if row < 0:
+            return None
+        m = self.models
+        return m.sig[row].copy(), float(m.sig_n[row]), m.emb[row].copy()
+
+    # ------------------------------------------------------------ association
+
+    def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
+        """``-(w_c LLR_colour + w_f c LLR_embedding)`` of every pair (``None``: no opinion)."""
+        looks = dets.looks
+        if looks is None or not len(table) or not len(dets):
+            return None
+        m = self.models
+        rows = m.rows(table.ids)
+        fit_c, fit_e = m.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
+        out = np.zeros((len(table), len(dets)))
+        if fit_c and self.colour.ready and self.cfg.appearance_weight > 0:
+            ok = np.flatnonzero(rows >= 0)
+            ok = ok[m.sig_n[rows[ok]] >= self.cfg.min_observations]
+            if len(ok) and looks.has_signature.any():
+                llr = self.colour.llr(hellinger(m.sig[rows[ok]], looks.signature))
+                out[ok] -= self.cfg.appearance_weight * llr * looks.has_signature[None, :]
+        if fit_e and self.face.ready and self.cfg.embedding_weight > 0:
+            ok = np.flatnonzero(rows >= 0)
+            ok = ok[m.emb_w[rows[ok]] > 0]
+            if len(ok) and (looks.embedding_weight > 0).any():
+                llr = self.face.llr(cosine_distance(m.emb[rows[ok]], looks.embedding))
+                out[ok] -= self.cfg.embedding_weight * llr * looks.embedding_weight[None, :]
+        return out if out.any() else None
+
+    # ----------------------------------------------------------------- events
+
+    def started(
+        self, table: TrackTable, rows: np.ndarray, dets: DetectionArrays, t: float
+    ) -> None:
+        """New tracks: each its own identity."""
+        self.models.add(table.ids[rows], t)
+
+    def observe(
+        self,
+        table: TrackTable,
+        rows: np.ndarray,
+        cols: np.ndarray,
+        dets: DetectionArrays,
+        t: float,
+    ) -> None:
+        """Learn from the step's updates, gather evidence, take decisions."""
+        looks = dets.looks
+        if looks is None or not len(rows):
+            return
+        m = self.models
+        mrows = m.rows(table.ids[rows])
+        ok = mrows >= 0
+        rows, cols, mrows = rows[ok], cols[ok], mrows[ok]
+        fit_c, fit_e = m.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
+        clean = looks.clean[cols] & (dets.confidence[cols] >= self.cfg.clean_min_confidence)
+        isolated, far = self._surroundings(table, dets.xy[cols])
+        confirmed = table.confirmed[rows]
+        if fit_c:
+            use = clean & looks.has_signature[cols]
+            ready = m.sig_n >= self.cfg.min_observations
+            self._learn_likelihood(
+                self.colour, m.sig, ready, mrows, looks.signature[cols], use & confirmed,
+                isolated, far, table, _rowwise_hellinger, hellinger,
+            )  # fmt: skip
+            m.learn_colour(mrows[use], looks.signature[cols[use]], self.cfg.model_rate)
+        if fit_e:
+            use = looks.embedding_weight[cols] > 0
+            ready = m.emb_w > 0
+            self._learn_likelihood(
+                self.face, m.emb, ready, mrows, looks.embedding[cols], use & confirmed,
+                isolated, far, table, _rowwise_cosine, cosine_distance,
+            )  # fmt: skip
+            m.learn_embedding(
+                mrows[use], looks.embedding[cols[use]], looks.embedding_weight[cols[use]],
+                self.cfg.model_rate,
+            )  # fmt: skip
+        self._gather_evidence(mrows, cols, dets, looks, clean & looks.has_signature[cols], t)
+        self._decide(table, t)
+
+    def ended(
+        self, table: TrackTable, rows: np.ndarray, t: float, reason: str = "deleted"
+    ) -> None:
+        """Tracks ``rows`` end: a confirmed person's identity waits in the pool.
+
+        ``reason``: ``"deleted"`` (lost), ``"merged"`` (a duplicate folded into another
+        track) or ``"reattached"`` (its track id continues under an older one).
+        """
+        m = self.models
+        ids = table.ids[rows]
+        mrows = m.rows(ids)
+        pooled = list(self.pool)
+        for row, tid, mr in zip(rows.tolist(), ids.tolist(), mrows.tolist(), strict=True):
+            link = self.links.pop(tid, None)
+            self.reid_ev.pop(tid, None)
+            self.named.pop(tid, None)
+            if mr < 0:
+                continue
+            keep = reason == "deleted" and bool(table.confirmed[row])
+            keep &= m.sig_n[mr] >= self.cfg.min_observations or m.emb_w[mr] > 0
+            if keep and self.cfg.pool_s > 0:
+                pooled.append(
+                    PooledIdentity(
+                        stable=int(m.stable[mr]), sig=m.sig[mr].copy(), sig_n=float(m.sig_n[mr]),
+                        emb=m.emb[mr].copy(), emb_w=float(m.emb_w[mr]),
+                        xy=table.recent_xy[row].copy(), lost_at=float(table.last_seen[row]),
+                        name_ev=m.name_ev[mr].copy(),
+                    )
+                )  # fmt: skip
+            elif link is not None:
+                pooled.append(link)  # a duplicate's borrowed identity is free again
+        self.pool = tuple(pooled)
+        m.drop(mrows[mrows >= 0])
+
+    def annotate(self, tracks: list[Track]) -> list[Track]:
+        """Each track with its ``stable_id`` and, when named, ``identity``."""
+        if not tracks:
+            return tracks
+        ids = np.array([tr.id for tr in tracks], dtype=np.int64)
+        rows = self.models.rows(ids)
+        stable = self.models.stable
+        names = self.roster.names
+        out = []
+        for tr, row in zip(tracks, rows.tolist(), strict=True):
+            k = self.named.get(tr.id)
+            out.append(
+                replace(
+                    tr,
+                    stable_id=int(stable[row]) if row >= 0 else tr.id,
+                    identity=names[k] if k is not None and k < len(names) else None,
+                )
+            )
+        return out
+
+    # --------------------------------------------------------------- learning
+
+    def _surroundings(self, table: TrackTable, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per detection: no other track near (isolated), and which tracks are far."""
+        gap = np.linalg.norm(xy[:, None, :] - table.x[None, :, 0:2], axis=2)
+        far = gap > ISOLATION_M
+        isolated = (~far).sum(axis=1) <= 1
+        return isolated, far
+
+    def _learn_likelihood(
+        self,
+        model: DistanceLikelihood,
+        refs: np.ndarray,
+        ready: np.ndarray,
+        mrows: np.ndarray,
+        looks: np.ndarray,
+        use: np.ndarray,
+        isolated: np.ndarray,
+        far: np.ndarray,
+        table: TrackTable,
+        rowwise,
+        pairwise,
+    ) -> None:
+        """Same-person and different-person distances from this step's updates."""
+        same_sel = use & isolated & ready[mrows]
+        same = rowwise(refs[mrows[same_sel]], looks[same_sel])
+        others = self.models.rows(table.ids)
+        valid = (others >= 0) & table.confirmed
+        valid[valid] &= ready[others[valid]]
+        different = np.zeros(0)
+        sel = np.flatnonzero(use)
+        if len(sel) and valid.any():
+            cand = np.flatnonzero(valid)
+            d = pairwise(looks[sel], refs[others[cand]])
+            mask = far[sel][:, cand]
+            different = d[mask][:MAX_DIFFERENT_SAMPLES]
+        model.learn(same, different)
+
+    def _look_llr(
+        self, looks: Looks, cols: np.ndarray, has_sig: np.ndarray, sig: np.ndarray,
+        sig_ok: np.ndarray, emb: np.ndarray, emb_ok: np.ndarray,
+    ) -> np.ndarray:  # fmt: skip
+        """Log-likelihood ratio ``(len(cols), K)`` of detections against K references."""
+        out = np.zeros((len(cols), len(sig)))
+        if self.colour.ready and sig.shape[1] == looks.signature.shape[1] and sig_ok.any():
+            llr = self.colour.llr(hellinger(looks.signature[cols], sig))
+            out += self.cfg.appearance_weight * llr * (has_sig[:, None] & sig_ok[None, :])
+        w = looks.embedding_weight[cols]
+        if self.face.ready and emb.shape[1] == looks.embedding.shape[1] and emb_ok.any():
+            llr = self.face.llr(cosine_distance(looks.embedding[cols], emb))
+            out += self.cfg.embedding_weight * llr * w[:, None] * emb_ok[None, :]
+        return out
+
+    def _gather_evidence(
+        self,
+        mrows: np.ndarray,
+        cols: np.ndarray,
+        dets: DetectionArrays,
+        looks: Looks,
+        has_sig: np.ndarray,
+        t: float,
+    ) -> None:
+        """Each observation adds to the evidence for pooled identities and names."""
+        m = self.models
+        useful = has_sig | (looks.embedding_weight[cols] > 0)
+        if not useful.any():
+            return
+        mrows, cols, has_sig = mrows[useful], cols[useful], has_sig[useful]
+        rho = self.cfg.evidence_per_observation
+        if len(self.roster):
+            sig, sig_ok = self.roster.references("signature", m.sig.shape[1])
+            emb, emb_ok = self.roster.references("embedding", m.emb.shape[1])
+            llr = self._look_llr(looks, cols, has_sig, sig, sig_ok, emb, emb_ok)
+            cap = 4.0 * self.cfg.link_evidence
+            np.add.at(m.name_ev, mrows, rho * llr)
+            np.clip(m.name_ev, -cap, cap, out=m.name_ev)
+        young = (t - m.born[mrows] <= self.cfg.reid_window_s) & (
+            m.own[mrows] | np.isin(m.ids[mrows], list(self.links))
+        )
+        if not young.any():
+            return
+        mrows, cols, has_sig = mrows[young], cols[young], has_sig[young]
+        entries = self.pool + tuple(
+            self.links[int(m.ids[r])] for r in mrows if int(m.ids[r]) in self.links
+        )
+        if not entries:
+            return
+        sig = np.array([e.sig for e in entries])
+        sig_ok = np.array([e.sig_n >= self.cfg.min_observations for e in entries])
+        emb = np.array([e.emb for e in entries])
+        emb_ok = np.array([e.emb_w > 0 for e in entries])
+        llr = self._look_llr(looks, cols, has_sig, sig, sig_ok, emb, emb_ok)
+        where = np.array([e.xy for e in entries])
+        since = np.array([e.lost_at for e in entries])
+        gap = np.linalg.norm(dets.xy[cols][:, None, :] - where[None, :, :], axis=2)
+        reach = self.cfg.reid_max_speed_mps * np.maximum(t - since, 0.0) + self.cfg.reid_margin_m
+        for k, r in enumerate(mrows.tolist()):
+            ev = self.reid_ev.setdefault(int(m.ids[r]), {})
+            for e, value, ok in zip(
+                entries, llr[k].tolist(), (gap[k] <= reach).tolist(), strict=True
+            ):
+                if ok:
+                    ev[e.stable] = ev.get(e.stable, 0.0) + rho * value
+
+    # -------------------------------------------------------------- decisions
+
+    def _decide(self, table: TrackTable, t: float) -> None:
+        """Expire the pool, revisit links, link young tracks, hand out names."""
+        cfg, m = self.cfg, self.models
+        self.pool = tuple(e for e in self.pool if t - e.lost_at <= cfg.pool_s)
+        for tid in list(self.links):
+            row = m.rows(np.array([tid]))[0]
+            if row < 0:
+                continue
+            entry = self.links[tid]
+            if t - m.born[row] > cfg.reid_window_s:
+                del self.links[tid]  # settled
+                self.reid_ev.pop(tid, None)
+            elif self.reid_ev.get(tid, {}).get(entry.stable, 0.0) <= cfg.unlink_evidence:
+                del self.links[tid]
+                m.stable[row], m.own[row] = tid, True
+                self.pool += (entry,)
+                self.counters["unlinked"] += 1
+        for tid in [k for k in self.reid_ev if k not in self.links]:
+            row = m.rows(np.array([tid]))[0]
+            if row < 0 or t - m.born[row] > cfg.reid_window_s:
+                del self.reid_ev[tid]
+        self._link(table)
+        self._name(table)
+
+    def _link(self, table: TrackTable) -> None:
+        """Young confirmed tracks take back the pooled identities they clearly are."""
+        cfg, m = self.cfg, self.models
+        if not self.pool or not self.reid_ev:
+            return
+        confirmed = set(table.ids[table.confirmed].tolist())
+        cands = [tid for tid in self.reid_ev if tid not in self.links and tid in confirmed]
+        if not cands:
+            return
+        ev = np.array([[self.reid_ev[c].get(e.stable, -np.inf) for e in self.pool] for c in cands])
+        ev = np.maximum(ev, -1e3)
+        top_row, top_col = ev.max(axis=1, keepdims=True), ev.max(axis=0, keepdims=True)
+        second_row = (
+            np.sort(ev, axis=1)[:, -2:-1] if ev.shape[1] > 1 else np.full_like(top_row, -1e3)
+        )
+        second_col = (
+            np.sort(ev, axis=0)[-2:-1, :] if ev.shape[0] > 1 else np.full_like(top_col, -1e3)
+        )
+        # each pair's strongest rival: another identity for this track (or "a new
+        # person", evidence 0), and another track for this identity
+        rival_row = np.maximum(np.where(ev >= top_row, second_row, top_row), 0.0)
+        rival_col = np.where(ev >= top_col, second_col, top_col)
+        qualifies = (
+            (ev >= cfg.link_evidence)
+            & (ev - rival_row >= cfg.link_margin)
+            & (ev - rival_col >= cfg.link_margin)
+        )
+        if not qualifies.any():
+            return
+        rows, cols = linear_sum_assignment(np.where(qualifies, -ev, 1e6))
+        taken = set()
+        for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
+            if not qualifies[r, c]:
+                continue
+            entry, tid = self.pool[c], cands[r]
+            row = m.rows(np.array([tid]))[0]
+            m.stable[row], m.own[row] = entry.stable, False
+            m.name_ev[row] = np.maximum(m.name_ev[row], entry.name_ev)
+            self.links[tid] = entry
+            taken.add(c)
+            self.counters["reidentified"] += 1
+        self.pool = tuple(e for k, e in enumerate(self.pool) if k not in taken)
+
+    def _name(self, table: TrackTable) -> None:
+        """Names to confirmed tracks one-to-one, by evidence, with hysteresis."""
+        m = self.models
+        if not len(self.roster) or not len(m):
+            self.named = {}
+            return
+        rows = m.rows(table.ids[table.confirmed])
+        rows = rows[rows >= 0]
+        if not len(rows):
+            self.named = {}
+            return
+        ev = m.name_ev[rows].copy()
+        ids = m.ids[rows]
+        for k, tid in enumerate(ids.tolist()):
+            held = self.named.get(tid)
+            if held is not None and held < ev.shape[1]:
+                ev[k, held] += self.cfg.link_margin
+        eligible = ev >= self.cfg.link_evidence
+        named: dict[int, int] = {}
+        if eligible.any():
+            r, c = linear_sum_assignment(np.where(eligible, -ev, 1e6))
+            named = {int(ids[i]): int(j) for i, j in zip(r, c, strict=True) if eligible[i, j]}
+        self.named = named
+
+    # ------------------------------------------------------------------ state
+
+    def snapshot(self) -> tuple:
+        """Everything the late-batch replay and the checkpoint must restore."""
+        return (
+            self.models.copy(), self.pool, dict(self.links),
+            {k: dict(v) for k, v in self.reid_ev.items()}, dict(self.named),
+            self.colour.state(), self.face.state(),
+        )  # fmt: skip
+
+    def restore(self, state: tuple) -> None:
+        """Return to a :meth:`snapshot`."""
+        models, pool, links, reid_ev, named, colour, face = state
+        self.models = models.copy()
+        self.pool, self.links, self.named = pool, dict(links), dict(named)
+        self.reid_ev = {k: dict(v) for k, v in reid_ev.items()}
+        self.colour.restore(colour)
+        self.face.restore(face)
+        if self.models.name_ev.shape[1] != len(self.roster):
+            self.models.name_ev = np.zeros((len(self.models), len(self.roster)))
+            self.named = {}
+
+
+def _remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:
+    out = np.zeros(len(mapping))
+    old = mapping >= 0
+    if old.any() and len(values):
+        out[old] = values[mapping[old]]
+    return out

@@ -1,0 +1,157 @@
+"""Per-track appearance models, as arrays keyed by track id.
+
+Each track has a colour model (the average of its clean signatures, an exponential
+average once it has seen ``1 / rate`` of them: a DeepSORT-style gallery reduced to its
+mean, which is what a hue histogram's comparison needs) and an embedding model (the
+confidence-weighted mean direction of its identity embeddings), its stable identity, and
+its evidence for each registered name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+_INT = np.int64
+
+
+@dataclass
+class TrackModels:
+    """Every track's look and identity (one row per track, in no particular order).
+
+    Parameters
+    ----------
+    ids : ndarray of int
+        Track id of each row.
+    sig, sig_n : ndarray
+        Colour model ``(n, B)`` (summing to 1) and the clean signatures it averages.
+    emb, emb_w : ndarray
+        Embedding model ``(n, D)`` (unit rows once any was seen) and its weight.
+    stable : ndarray of int
+        The identity published as ``stable_id``.
+    own : ndarray of bool
+        Whether ``stable`` is the track's own (not taken from a pooled identity).
+    born : ndarray
+        Time of the track's first detection.
+    name_ev : ndarray
+        ``(n, R)`` evidence (log-likelihood ratio) for each registered name.
+    """
+
+    ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_INT))
+    sig: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    sig_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    emb: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    emb_w: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stable: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_INT))
+    own: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    born: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    name_ev: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+    COLUMNS = ("ids", "sig", "sig_n", "emb", "emb_w", "stable", "own", "born", "name_ev")
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def copy(self) -> TrackModels:
+        """An independent copy."""
+        return TrackModels(**{name: getattr(self, name).copy() for name in self.COLUMNS})
+
+    def rows(self, ids: np.ndarray) -> np.ndarray:
+        """Row of each track id (``-1`` for ids without a row)."""
+        if not len(self.ids):
+            return np.full(len(ids), -1, dtype=_INT)
+        order = np.argsort(self.ids, kind="stable")
+        where = np.searchsorted(self.ids[order], ids)
+        where = np.minimum(where, len(order) - 1)
+        found = self.ids[order][where] == ids
+        return np.where(found, order[where], -1)
+
+    def add(self, ids: np.ndarray, born: float) -> None:
+        """New rows for tracks ``ids``, each its own identity."""
+        n = len(ids)
+        self.ids = np.concatenate([self.ids, ids.astype(_INT)])
+        self.sig = np.vstack([self.sig, np.zeros((n, self.sig.shape[1]))])
+        self.sig_n = np.concatenate([self.sig_n, np.zeros(n)])
+        self.emb = np.vstack([self.emb, np.zeros((n, self.emb.shape[1]))])
+        self.emb_w = np.concatenate([self.emb_w, np.zeros(n)])
+        self.stable = np.concatenate([self.stable, ids.astype(_INT)])
+        self.own = np.concatenate([self.own, np.ones(n, dtype=bool)])
+        self.born = np.concatenate([self.born, np.full(n, born)])
+        self.name_ev = np.vstack([self.name_ev, np.zeros((n, self.name_ev.shape[1]))])
+
+    def drop(self, rows: np.ndarray) -> None:
+        """Remove ``rows``."""
+        keep = np.ones(len(self), dtype=bool)
+        keep[rows] = False
+        for name in self.COLUMNS:
+            setattr(self, name, getattr(self, name)[keep])
+
+    def fit_dims(self, sig_dim: int, emb_dim: int) -> tuple[bool, bool]:
+        """Size the models for signatures and embeddings of these lengths.
+
+        A model takes the length of the first looks it sees; looks of another length
+        (a second kind of detector) are ignored. Returns whether each kind fits.
+        """
+        if self.sig.shape[1] == 0 and sig_dim:
+            self.sig = np.zeros((len(self), sig_dim))
+        if self.emb.shape[1] == 0 and emb_dim:
+            self.emb = np.zeros((len(self), emb_dim))
+        return self.sig.shape[1] == sig_dim > 0, self.emb.shape[1] == emb_dim > 0
+
+    def learn_colour(self, rows: np.ndarray, sigs: np.ndarray, rate: float) -> None:
+        """Average clean signatures ``sigs`` into the colour models of ``rows``."""
+        n = self.sig_n[rows]
+        r = np.maximum(rate, 1.0 / (n + 1.0))[:, None]
+        self.sig[rows] = (1.0 - r) * self.sig[rows] + r * sigs
+        self.sig_n[rows] = n + 1.0
+
+    def learn_embedding(
+        self, rows: np.ndarray, embs: np.ndarray, weights: np.ndarray, rate: float
+    ) -> None:
+        """Average embeddings into the models of ``rows``, each by its confidence."""
+        total = self.emb_w[rows]
+        r = (weights / np.maximum(total + weights, 1e-9)).clip(min=rate * weights)[:, None]
+        mean = (1.0 - r) * self.emb[rows] + r * embs
+        norm = np.linalg.norm(mean, axis=1, keepdims=True)
+        self.emb[rows] = np.where(norm > 0, mean / np.maximum(norm, 1e-12), 0.0)
+        self.emb_w[rows] = total + weights
+
+    def resize_names(self, mapping: np.ndarray) -> None:
+        """Reorder the name evidence after a roster change.
+
+        ``mapping[k]``: the old column of the new roster's name ``k`` (``-1``: new name).
+        """
+        out = np.zeros((len(self), len(mapping)))
+        old = mapping >= 0
+        if len(self) and old.any():
+            out[:, old] = self.name_ev[:, mapping[old]]
+        self.name_ev = out
+
+
+@dataclass(frozen=True)
+class PooledIdentity:
+    """A confirmed person whose track was lost, waiting to be recognised again.
+
+    Parameters
+    ----------
+    stable : int
+        The identity.
+    sig, sig_n, emb, emb_w : ndarray or float
+        The lost track's looks (as in :class:`TrackModels`).
+    xy : ndarray
+        Where the person was last seen.
+    lost_at : float
+        When.
+    name_ev : ndarray
+        Its evidence for each registered name.
+    """
+
+    stable: int
+    sig: np.ndarray
+    sig_n: float
+    emb: np.ndarray
+    emb_w: float
+    xy: np.ndarray
+    lost_at: float
+    name_ev: np.ndarray

@@ -1,0 +1,361 @@
+"""The identity role: learned likelihoods, appearance in association, re-identification,
+names, replay and checkpoints, on hand-built detections whose truth is known."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from openptrack_py.config import TrackerConfig
+from openptrack_py.errors import ConfigError
+from openptrack_py.messages.detection import Detection, DetectionBatch
+from openptrack_py.tracking import build_tracker
+from openptrack_py.tracking.identity import (
+    AppearanceIdentity,
+    Roster,
+    RosterEntry,
+    load_roster,
+    save_roster,
+)
+from openptrack_py.tracking.identity.likelihood import DistanceLikelihood, hellinger
+from openptrack_py.tracking.state import Looks
+from tests.tracking.helpers import FRAME, T0
+
+BINS = 19
+
+
+def look(hue_bin: int, rng: np.random.Generator, noise: float = 0.15) -> tuple[int, ...]:
+    """A noisy signature of clothing mostly in one bin (and a neighbour's tail)."""
+    h = np.full(BINS, 0.02)
+    h[hue_bin] += 0.7
+    h[(hue_bin + 1) % BINS] += 0.2
+    h *= rng.gamma(1 / noise**2, noise**2, BINS)
+    return tuple(np.round(h / h.sum() * 255).astype(int).tolist())
+
+
+def person(x, y, sig, conf=0.9, u=None, face=None):
+    u = int(100 + 60 * x) if u is None else u
+    return Detection(
+        x=float(x), y=float(y), z=0.9, height=1.75, confidence=conf, distance=3.0,
+        bbox=(u, 50, 40, 150), appearance=sig, face=face,
+    )  # fmt: skip
+
+
+def batch(t, dets, k, sensor="s0"):
+    return DetectionBatch(sensor_id=sensor, seq=k, stamp=t, frame_id="world", detections=dets)
+
+
+def identity_tracker(**identity) -> object:
+    cfg = TrackerConfig(identity={"enabled": True, **identity})
+    return build_tracker(cfg)
+
+
+def _warm_up(tracker, rng, frames=300, k0=0, t0=T0):
+    """Three people walking apart, each in their own colour: the likelihood learns."""
+    out = None
+    for k in range(frames):
+        t = t0 + k * FRAME
+        dets = tuple(
+            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(3 * i + 1, rng))
+            for i in range(3)
+        )
+        out = tracker.step(batch(t, dets, k0 + k))
+    return out, t0 + frames * FRAME
+
+
+# -------------------------------------------------------------- the likelihood
+
+
+def test_the_likelihood_has_no_opinion_until_it_has_learned() -> None:
+    model = DistanceLikelihood(max_llr=3.0)
+    assert not model.ready
+    assert (model.llr(np.linspace(0, 1, 11)) == 0).all()
+    rng = np.random.default_rng(1)
+    model.learn(rng.uniform(0.0, 0.3, 400), rng.uniform(0.4, 1.0, 400))
+    assert model.ready
+    assert model.llr(np.array([0.1]))[0] > 2.0
+    assert model.llr(np.array([0.8]))[0] < -2.0
+    assert model.separation() > 1.0
+    copy = DistanceLikelihood(3.0)
+    copy.restore(model.state())
+    np.testing.assert_array_equal(
+        copy.llr(np.linspace(0, 1, 50)), model.llr(np.linspace(0, 1, 50))
+    )
+
+
+def test_where_everyone_looks_alike_the_likelihood_stays_near_zero() -> None:
+    model = DistanceLikelihood(max_llr=3.0)
+    rng = np.random.default_rng(2)
+    model.learn(rng.uniform(0.0, 0.5, 2000), rng.uniform(0.0, 0.5, 2000))
+    assert np.abs(model.llr(np.linspace(0.0, 0.5, 20))).max() < 0.6
+    assert model.separation() < 0.1
+
+
+def test_hellinger_is_zero_for_equal_and_one_for_disjoint_histograms() -> None:
+    a = np.array([[0.5, 0.5, 0.0, 0.0]])
+    b = np.array([[0.5, 0.5, 0.0, 0.0], [0.0, 0.0, 0.5, 0.5]])
+    np.testing.assert_allclose(hellinger(a, b), [[0.0, 1.0]], atol=1e-9)
+
+
+def test_looks_mark_the_farther_of_two_overlapping_boxes_unclean() -> None:
+    rng = np.random.default_rng(0)
+    near = replace(person(1, 1, look(2, rng), u=100), distance=2.0)
+    far = replace(person(1.2, 1.5, look(5, rng), u=120), distance=4.0)
+    apart = replace(person(4, 1, look(8, rng), u=400), distance=3.0)
+    looks = Looks.of([near, far, apart])
+    assert looks.clean.tolist() == [True, False, True]
+    np.testing.assert_allclose(looks.signature.sum(axis=1), 1.0)
+
+
+# ------------------------------------------------------------------ association
+
+
+def _crossing(tracker, rng, t0, k0, same_colour=False):
+    """Two people walk towards each other along one line, meet and go on (or turn back).
+
+    They turn back at the meeting point: motion alone predicts that they continue and
+    swap; their colours say otherwise. Returns each person's output ids after the meeting.
+    """
+    ids_after = {0: set(), 1: set()}
+    n = 90
+    for k in range(n):
+        t = t0 + k * FRAME
+        s = k / (n - 1)
+        # approach (first half) and turn back (second half): mirror paths
+        d = 1.2 * (1 - 2 * s) if s < 0.5 else 1.2 * (2 * s - 1)
+        xa, xb = 5.0 - max(d, 0.05), 5.0 + max(d, 0.05)
+        sig_b = look(2, rng) if same_colour else look(11, rng)
+        dets = (person(xa, 8.0, look(2, rng), u=300), person(xb, 8.0, sig_b, u=600))
+        out = tracker.step(batch(t, dets, k0 + k))
+        if s > 0.75:
+            for tr in out.tracks:
+                side = 0 if tr.x < 5.0 else 1
+                ids_after[side].add(tr.stable_id)
+    return ids_after
+
+
+def test_identity_annotates_every_track_with_a_stable_id() -> None:
+    rng = np.random.default_rng(3)
+    tracker = identity_tracker()
+    out, _ = _warm_up(tracker, rng)
+    assert len(out.tracks) == 3
+    assert all(tr.stable_id == tr.id for tr in out.tracks)
+    assert tracker.identity.colour.ready
+
+
+def test_appearance_never_admits_a_pair_the_gate_rejects() -> None:
+    rng = np.random.default_rng(4)
+    tracker = identity_tracker(appearance_weight=10.0)
+    out, t = _warm_up(tracker, rng)
+    ids = {tr.id for tr in out.tracks}
+    # a detection 3 m from every track, in the colours of track 1's person
+    far = person(9.0, 9.0, look(1, rng))
+    out = tracker.step(batch(t, (far,), 10_000))
+    assert all(abs(tr.x - 9.0) > 1.0 for tr in out.tracks if tr.id in ids)
+
+
+# ------------------------------------------------------------- re-identification
+
+
+def _leave_and_return(tracker, rng, t, k0, colour, where=(6.0, 6.0), gone_s=20.0):
+    """The person of ``colour`` comes back after ``gone_s`` while the others stay."""
+    out = None
+    k = k0
+    # the others keep walking while the person is away; the person is absent
+    steps = int(gone_s / (5 * FRAME))
+    for j in range(steps):
+        tt = t + j * 5 * FRAME
+        dets = tuple(person(1.0, 2.0 + 2.5 * i, look(3 * i + 1, rng)) for i in (0, 2))
+        out = tracker.step(batch(tt, dets, k))
+        k += 1
+    t = t + steps * 5 * FRAME
+    for j in range(120):
+        tt = t + j * FRAME
+        dets = tuple(person(1.0, 2.0 + 2.5 * i, look(3 * i + 1, rng)) for i in (0, 2))
+        dets += (person(where[0] + 0.01 * j, where[1], look(colour, rng), u=700),)
+        out = tracker.step(batch(tt, dets, k))
+        k += 1
+    return out
+
+
+def test_a_person_who_returns_gets_their_stable_id_back() -> None:
+    rng = np.random.default_rng(5)
+    tracker = identity_tracker()
+    out, t = _warm_up(tracker, rng)
+    before = {round(tr.y): tr.stable_id for tr in out.tracks}
+    out = _leave_and_return(tracker, rng, t, 1000, colour=4)
+    back = [tr for tr in out.tracks if tr.x > 5.0]
+    assert len(back) == 1
+    assert back[0].id != before[4]  # a new track...
+    assert back[0].stable_id == before[4]  # ...with the old identity
+    assert tracker.identity.counters["reidentified"] == 1
+
+
+def test_a_stranger_does_not_take_a_pooled_identity() -> None:
+    rng = np.random.default_rng(6)
+    tracker = identity_tracker()
+    out, t = _warm_up(tracker, rng)
+    old = {tr.stable_id for tr in out.tracks}
+    out = _leave_and_return(tracker, rng, t, 1000, colour=15)  # not the one who left
+    back = [tr for tr in out.tracks if tr.x > 5.0]
+    assert len(back) == 1
+    assert back[0].stable_id not in old
+    assert back[0].stable_id == back[0].id
+
+
+def test_a_pooled_identity_is_only_taken_where_its_person_could_have_walked() -> None:
+    rng = np.random.default_rng(7)
+    tracker = identity_tracker(reid_max_speed_mps=0.05, reid_margin_m=0.5)
+    out, t = _warm_up(tracker, rng)
+    out = _leave_and_return(tracker, rng, t, 1000, colour=4, where=(9.0, 9.0), gone_s=10.0)
+    back = [tr for tr in out.tracks if tr.x > 5.0]
+    assert back[0].stable_id == back[0].id
+
+
+def test_the_pool_forgets_after_pool_s() -> None:
+    rng = np.random.default_rng(8)
+    tracker = identity_tracker(pool_s=5.0)
+    out, t = _warm_up(tracker, rng)
+    out = _leave_and_return(tracker, rng, t, 1000, colour=4, gone_s=20.0)
+    back = [tr for tr in out.tracks if tr.x > 5.0]
+    assert back[0].stable_id == back[0].id
+
+
+def test_stable_ids_are_never_on_two_tracks_at_once() -> None:
+    rng = np.random.default_rng(9)
+    tracker = identity_tracker()
+    out, t = _warm_up(tracker, rng)
+    for rep in range(3):
+        out = _leave_and_return(tracker, rng, t + rep * 40.0, 1000 + rep * 1000, colour=4)
+        stable = [tr.stable_id for tr in out.tracks]
+        assert len(stable) == len(set(stable))
+
+
+# -------------------------------------------------------------------- the roster
+
+
+def _roster_of(tracker) -> Roster:
+    entries = []
+    for tid, name in ((1, "ada"), (2, "bo"), (3, "cy")):
+        sig, n, _ = tracker.identity.looks_of(tid)
+        entries.append(RosterEntry(name, tuple(sig.tolist()), (), int(n)))
+    return Roster(tuple(entries))
+
+
+def test_registered_people_are_named_one_to_one() -> None:
+    rng = np.random.default_rng(10)
+    tracker = identity_tracker()
+    _warm_up(tracker, rng)
+    roster = _roster_of(tracker)
+    fresh = identity_tracker()
+    fresh.identity.set_roster(roster)
+    names_seen = []
+    out, t = _warm_up(fresh, rng, frames=120)
+    for k in range(120):
+        dets = tuple(person(1.0, 2.0 + 2.5 * i, look(3 * i + 1, rng)) for i in range(3))
+        out = fresh.step(batch(t + k * FRAME, dets, 5000 + k))
+        names = [tr.identity for tr in out.tracks if tr.identity]
+        assert len(names) == len(set(names))
+        names_seen.append({round(tr.y): tr.identity for tr in out.tracks})
+    assert names_seen[-1] == {2: "ada", 4: "bo", 7: "cy"}
+
+
+def test_roster_file_roundtrip_and_errors(tmp_path: Path) -> None:
+    path = tmp_path / "roster.yaml"
+    roster = Roster((RosterEntry("Ada Lovelace", (0.5, 0.5), (), 12, "2026-11-24T10:00:00Z"),))
+    save_roster(roster, path)
+    assert load_roster(path) == roster
+    assert load_roster(tmp_path / "missing.yaml") == Roster()
+    path.write_text("version: 1\npeople:\n  - name: x\n    colour: [1]\n")
+    with pytest.raises(ConfigError, match=r"people\[0\]: unknown key 'colour'"):
+        load_roster(path)
+    path.write_text("version: 1\npeople:\n  - name: ''\n    signature: [1]\n")
+    with pytest.raises(ConfigError, match=r"people\[0\]\.name"):
+        load_roster(path)
+    path.write_text(
+        "version: 1\npeople:\n  - {name: a, signature: [1]}\n  - {name: a, signature: [1]}\n"
+    )
+    with pytest.raises(ConfigError, match="registered twice"):
+        load_roster(path)
+    path.write_text("version: 1\npeople:\n  - {name: a, signature: [.nan]}\n")
+    with pytest.raises(ConfigError, match="finite"):
+        load_roster(path)
+
+
+# ------------------------------------------------------------- replay, checkpoint
+
+
+def test_identity_state_survives_a_late_batch_replay() -> None:
+    rng = np.random.default_rng(11)
+    items = []
+    for k in range(400):
+        t = T0 + k * FRAME
+        for s, sensor in enumerate(("a", "b")):
+            dets = tuple(
+                person(1.0 + 0.5 * i + 0.1 * s, 2.0 + 2.5 * i, look(3 * i + 1, rng))
+                for i in range(3)
+            )
+            items.append(batch(t + 0.001 * s, dets, k, sensor))
+    late = items.pop(301)  # sensor b's frame 150 arrives 0.3 s late
+    late_order = items[:]
+    late_order.insert(301 + 18, late)
+    ontime_order = sorted(late_order, key=lambda b: b.stamp)
+    results = []
+    for order in (late_order, ontime_order):
+        tracker = identity_tracker()
+        for b in order:
+            tracker.step(b)
+        results.append(tracker)
+    a, b = (r.identity for r in results)
+    assert results[0].counters["late_applied"] == 1
+    np.testing.assert_array_equal(a.models.sig, b.models.sig)
+    np.testing.assert_array_equal(a.colour.counts, b.colour.counts)
+
+
+def test_identity_is_part_of_the_checkpoint(tmp_path: Path) -> None:
+    from openptrack_py.tracking.checkpoint import CheckpointStore
+
+    rng = np.random.default_rng(12)
+    tracker = identity_tracker()
+    _warm_up(tracker, rng)
+    tracker.identity.counters["reidentified"] = 0
+    store = CheckpointStore(tmp_path / "tracker.ckpt")
+    store.save(tracker)
+    restarted = identity_tracker()
+    checkpoint = store.load()
+    restarted.restore_state(checkpoint.table, checkpoint.time, checkpoint.roles)
+    np.testing.assert_array_equal(restarted.identity.models.sig, tracker.identity.models.sig)
+    assert restarted.identity.colour.ready
+
+
+def test_identity_off_is_the_default_and_costs_nothing() -> None:
+    tracker = build_tracker()
+    assert not tracker.identity.needs_looks
+    assert not isinstance(tracker.identity, AppearanceIdentity)
+
+
+def test_colours_keep_two_people_apart_where_motion_would_swap_them() -> None:
+    """They meet and turn back: motion predicts they pass; colours say they did not."""
+    rng = np.random.default_rng(13)
+    tracker = identity_tracker()
+    _, t = _warm_up(tracker, rng)
+    for rep in range(3):
+        t0 = t + 2.0 + rep * 6.0
+        # first, each one's identity while they stand apart
+        out = None
+        for k in range(60):
+            w = 0.3 * math.sin(k / 10)
+            dets = (
+                person(3.8, 8.0 + w, look(2, rng), u=300),
+                person(6.2, 8.0 - w, look(11, rng), u=600),
+            )
+            out = tracker.step(batch(t0 - 2.0 + k * FRAME, dets, 1500 + rep * 300 + k))
+        left = {tr.stable_id for tr in out.tracks if 3.0 < tr.x < 4.5 and tr.y > 7}
+        right = {tr.stable_id for tr in out.tracks if 5.5 < tr.x < 7.0 and tr.y > 7}
+        ids_after = _crossing(tracker, rng, t0, 1600 + rep * 300)
+        assert ids_after[0] == left
+        assert ids_after[1] == right
