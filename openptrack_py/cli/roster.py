@@ -46,20 +46,17 @@ def run(args: argparse.Namespace) -> int:
 
     from openptrack_py.cli.configure import ask_node
     from openptrack_py.config.network import TRACKER
+    from openptrack_py.tracking.roster_service import roster_request
 
     start_logging(args)
-    body: dict[str, object] = {"action": args.action}
-    if args.action in ("add", "remove"):
-        if not args.name:
-            print(f"openptrack roster {args.action}: a NAME is needed", file=sys.stderr)
-            return EXIT_CONFIG
-        body["name"] = args.name
-    if args.action == "add":
-        if args.track is None:
-            print("openptrack roster add: --track ID is needed", file=sys.stderr)
-            return EXIT_CONFIG
-        body["track"] = args.track
-    ack = ask_node(args, TRACKER, {"roster": body})
+    if args.action in ("add", "remove") and not args.name:
+        print(f"openptrack roster {args.action}: a NAME is needed", file=sys.stderr)
+        return EXIT_CONFIG
+    if args.action == "add" and args.track is None:
+        print("openptrack roster add: --track ID is needed", file=sys.stderr)
+        return EXIT_CONFIG
+    body = roster_request(args.action, args.name, args.track if args.action == "add" else None)
+    ack = ask_node(args, TRACKER, body)
     if ack is None:
         return 1
     if not ack.accepted:

@@ -3,10 +3,11 @@
 Roster requests travel on the tracker's configuration channel (so a secured site's
 access control already says who may send them): a
 :class:`~openptrack_py.messages.config_update.ConfigUpdate` whose ``set`` is
-``{"roster": {"action": "add", "name": NAME, "track": ID}}`` (or ``"remove"`` with a
-name, or ``"list"``). The tracker captures the track's looks from its identity role,
-writes the roster file atomically and answers with the roster's people in the ack's
-``config`` (``{"roster": [{"name", "observations", "added"}, ...]}``).
+``{"roster": "add", "roster.name": NAME, "roster.track": ID}`` (or ``"remove"`` with a
+name, or ``"list"``; plain values, as every configuration request). The tracker
+captures the track's looks from its identity role, writes the roster file atomically and
+answers with the roster's people in the ack's ``config``
+(``{"roster": [{"name", "observations", "added"}, ...]}``).
 
 The file is also watched: an edit by hand (or by another tool) is loaded at most
 :data:`RELOAD_CHECK_S` later; a file that does not parse is reported and the roster in
@@ -35,6 +36,16 @@ ROSTER_KEY = "roster"
 RELOAD_CHECK_S = 1.0
 """How often the roster file's modification time is checked, seconds."""
 ACTIONS = ("add", "remove", "list")
+
+
+def roster_request(action: str, name: str | None = None, track: int | None = None) -> dict:
+    """The ``set`` of a roster request."""
+    body: dict[str, object] = {ROSTER_KEY: action}
+    if name is not None:
+        body[f"{ROSTER_KEY}.name"] = name
+    if track is not None:
+        body[f"{ROSTER_KEY}.track"] = track
+    return body
 
 
 def roster_listing(roster: Roster) -> dict[str, Any]:
@@ -69,8 +80,8 @@ class RosterKeeper:
         except FileNotFoundError:
             return None
 
-    def request(self, identity: object, body: Any) -> dict[str, Any]:
-        """Apply one request; return the answer's listing.
+    def request(self, identity: object, changes: dict[str, Any]) -> dict[str, Any]:
+        """Apply one request (a configuration update's ``set``); return the listing.
 
         Raises
         ------
@@ -82,9 +93,13 @@ class RosterKeeper:
             raise ConfigError("roster: identity is off (set tracker.identity.enabled=true)")
         if self.path is None:
             raise ConfigError("roster: tracker.identity.roster_file is not set")
-        if not isinstance(body, dict) or body.get("action") not in ACTIONS:
+        body = {k.removeprefix(f"{ROSTER_KEY}."): v for k, v in changes.items()}
+        action = body.pop(ROSTER_KEY, None)
+        unknown = sorted(set(body) - {"name", "track"})
+        if unknown:
+            raise ConfigError(f"roster.{unknown[0]}: unknown (a roster request has name, track)")
+        if action not in ACTIONS:
             raise ConfigError(f"roster: expected an action, one of {', '.join(ACTIONS)}")
-        action = body["action"]
         roster = identity.roster
         if action == "add":
             roster = roster.with_person(self._capture(identity, body))

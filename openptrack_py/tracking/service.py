@@ -229,9 +229,7 @@ class TrackerService:
     def _roster_request(self, update: ConfigUpdate) -> ConfigAck:
         """Apply a roster request (``openptrack roster``) and answer it."""
         try:
-            if len(update.set) != 1:
-                raise ConfigError("roster: a roster request changes nothing else")
-            listing = self._roster.request(self.pipeline.tracker.identity, update.set[ROSTER_KEY])
+            listing = self._roster.request(self.pipeline.tracker.identity, update.set)
         except ConfigError as exc:
             self.node.counters.inc("roster_rejected")
             return ConfigAck(update.id, self.node.name, False, str(exc), {})
