@@ -58,6 +58,13 @@ class IdentityConfig(StrictModel):
     unlink_evidence : float
         A link is undone when its evidence falls to this (later observations contradict
         it), and the identity returns to the pool.
+    share_max_s : float
+        Two tracks known to be two people may share one detection (people standing so
+        close they come out as one blob) for at most this long after the one without a
+        detection of its own was last seen alone.
+    share_distance_m : float
+        ... and only while the two tracks are at most this far apart (two people side
+        by side in one blob: each within a body width of its centroid).
     roster_file : Path or None
         YAML file of registered people (``openptrack roster``); reloaded when it changes.
     """
@@ -77,4 +84,6 @@ class IdentityConfig(StrictModel):
     link_evidence: float = Field(3.0, gt=0.0, le=100.0)
     link_margin: float = Field(2.0, ge=0.0, le=100.0)
     unlink_evidence: float = Field(-1.0, le=0.0, ge=-100.0)
+    share_max_s: float = Field(60.0, ge=0.0, le=3600.0)
+    share_distance_m: float = Field(0.6, ge=0.0, le=5.0)
     roster_file: Path | None = None

@@ -17,7 +17,8 @@ sensors            ``correct`` / ``noise_scale`` / ``covers`` / ``learn``: Onlin
                    what is learned about each sensor
 merger             ``observe`` / ``merge`` / ``reattach``: one person,   TrackMerger
                    one track
-identity           ``cost`` / ``observe`` / ``annotate``: who a track is NullIdentity
+identity           ``cost`` / ``observe`` / ``distinct`` / ``annotate``:  NullIdentity
+                   who a track is
 =================  ===================================================  ==============
 
 Per-track state lives in one of two places, both restored by the tracker's late-batch
@@ -210,6 +211,21 @@ class IdentityModel(Protocol):
 
         ``reason``: ``"deleted"`` (lost), ``"merged"`` (folded into another track) or
         ``"reattached"`` (its person continues under an older track's id).
+        """
+
+    def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
+        """Mask of the pairs of tracks ``(rows_a[k], rows_b[k])`` known to be two people.
+
+        Such tracks are never merged.
+        """
+
+    def shares(
+        self, table: TrackTable, lonely: np.ndarray, partner: np.ndarray, t: float
+    ) -> np.ndarray:
+        """Mask of the tracks ``lonely`` that may take their ``partner``'s detection at ``t``.
+
+        They are known to be two people standing so close that they came out as one
+        detection (and ``lonely`` was seen on its own recently enough).
         """
 
     def annotate(self, tracks: list[Track]) -> list[Track]:

@@ -179,6 +179,15 @@ class ForgetfulIdentity:
         for ident in table.ids[rows].tolist():
             self.counts.pop(ident, None)
 
+    def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
+        return np.zeros(len(rows_a), dtype=bool)
+
+    def shares(
+        self, table: TrackTable, lonely: np.ndarray, partner: np.ndarray, t: float
+    ) -> np.ndarray:
+        """No track shares another's detection."""
+        return np.zeros(len(lonely), dtype=bool)
+
     def annotate(self, tracks: list[Track]) -> list[Track]:
         return [
             replace(tr, stable_id=tr.id + 10_000, identity=f"seen{self.counts.get(tr.id, 0)}")

@@ -359,3 +359,48 @@ def test_colours_keep_two_people_apart_where_motion_would_swap_them() -> None:
         ids_after = _crossing(tracker, rng, t0, 1600 + rep * 300)
         assert ids_after[0] == left
         assert ids_after[1] == right
+
+
+def _blob_scene(tracker, rng, t0, k0):
+    """Two people stand apart, walk up to each other and stand as one blob for 5 s, part.
+
+    Returns the stable ids on each side before, the ids published during the blob, and
+    the stable ids on each side after.
+    """
+    during: list[set] = []
+    ids_before: dict = {}
+    out = None
+    k = k0
+    # frames and half separation at the start and end of each phase (0: one blob)
+    phases = ((90, 1.2, 1.2), (30, 1.2, 0.3), (150, 0.0, 0.0), (30, 0.3, 1.2), (30, 1.2, 1.2))
+    for p, (frames, h0, h1) in enumerate(phases):
+        for j in range(frames):
+            t = t0 + (k - k0) * FRAME
+            half = h0 + (h1 - h0) * j / frames
+            if half:
+                w = 0.4 * math.sin(j / 8) if p == 0 else 0.0
+                dets = (
+                    person(5.0 - half + w, 11.0, look(2, rng), u=300),
+                    person(5.0 + half - w, 11.0, look(11, rng), u=600),
+                )
+            else:  # one blob: both people's colours, at their centroid
+                mixed = tuple((np.array(look(2, rng)) + np.array(look(11, rng))) // 2)
+                dets = (person(5.0 + 0.05 * math.sin(j / 5), 11.0, mixed, u=450),)
+            out = tracker.step(batch(t, dets, k))
+            k += 1
+            if p == 2:
+                during.append({tr.stable_id for tr in out.tracks if tr.y > 10})
+        if p == 0:
+            ids_before = {tr.x < 5.0: tr.stable_id for tr in out.tracks if tr.y > 10}
+    after = {tr.x < 5.0: tr.stable_id for tr in out.tracks if tr.y > 10}
+    return ids_before, during, after
+
+
+def test_two_people_in_one_blob_keep_both_identities() -> None:
+    rng = np.random.default_rng(14)
+    tracker = identity_tracker()
+    _, t = _warm_up(tracker, rng, frames=400)
+    before, during, after = _blob_scene(tracker, rng, t + 1.0, 3000)
+    assert len(before) == 2
+    assert all(ids == set(before.values()) for ids in during[30:])  # both stay published
+    assert after == before  # and each is on their own side when they part

@@ -47,6 +47,8 @@ from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
 ISOLATION_M = 1.5
 """A detection with no other track within this is certainly its own track's person (a
 "same" sample), and certainly not the person of a track farther than this."""
+DISTINCT_OBSERVATIONS = 10
+"""Clean signatures each of two tracks needs before they can be judged two people."""
 MAX_DIFFERENT_SAMPLES = 64
 """Different-person distances learned per step at most."""
 
@@ -158,9 +160,13 @@ class AppearanceIdentity:
         mrows = m.rows(table.ids[rows])
         ok = mrows >= 0
         rows, cols, mrows = rows[ok], cols[ok], mrows[ok]
+        m.seen[mrows] = t
         fit_c, fit_e = m.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
-        clean = looks.clean[cols] & (dets.confidence[cols] >= self.cfg.clean_min_confidence)
-        isolated, far = self._surroundings(table, dets.xy[cols])
+        isolated, far, alone = self._surroundings(table, dets.xy[cols])
+        # a detection with another person within a body width may be both of them in
+        # one blob: its colours are theirs mixed
+        clean = looks.clean[cols] & alone
+        clean &= dets.confidence[cols] >= self.cfg.clean_min_confidence
         confirmed = table.confirmed[rows]
         if fit_c:
             use = clean & looks.has_signature[cols]
@@ -218,6 +224,43 @@ class AppearanceIdentity:
         self.pool = tuple(pooled)
         m.drop(mrows[mrows >= 0])
 
+    def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
+        """Pairs whose looks say two people (log-likelihood ratio below ``-link_margin``).
+
+        Both models must be settled (``DISTINCT_OBSERVATIONS`` clean signatures, or an
+        embedding each). Two tracks of one person (a duplicate) look alike and are
+        never distinct; where everyone dresses alike nobody is.
+        """
+        m = self.models
+        a, b = m.rows(table.ids[rows_a]), m.rows(table.ids[rows_b])
+        ok = (a >= 0) & (b >= 0)
+        llr = np.zeros(len(a))
+        known = np.zeros(len(a), dtype=bool)
+        if self.colour.ready and m.sig.shape[1]:
+            both = (
+                ok & (m.sig_n[a] >= DISTINCT_OBSERVATIONS) & (m.sig_n[b] >= DISTINCT_OBSERVATIONS)
+            )
+            d = _rowwise_hellinger(m.sig[a[both]], m.sig[b[both]])
+            llr[both] += self.cfg.appearance_weight * self.colour.llr(d)
+            known |= both
+        if self.face.ready and m.emb.shape[1]:
+            both = ok & (m.emb_w[a] > 0) & (m.emb_w[b] > 0)
+            d = _rowwise_cosine(m.emb[a[both]], m.emb[b[both]])
+            llr[both] += self.cfg.embedding_weight * self.face.llr(d)
+            known |= both
+        return known & (llr <= -self.cfg.link_margin)
+
+    def shares(
+        self, table: TrackTable, lonely: np.ndarray, partner: np.ndarray, t: float
+    ) -> np.ndarray:
+        """Known two people, side by side, ``lonely`` seen alone within ``share_max_s``."""
+        rows = self.models.rows(table.ids[lonely])
+        recent = np.zeros(len(rows), dtype=bool)
+        recent[rows >= 0] = t - self.models.seen[rows[rows >= 0]] <= self.cfg.share_max_s
+        gap = np.linalg.norm(table.x[lonely, 0:2] - table.x[partner, 0:2], axis=1)
+        recent &= gap <= self.cfg.share_distance_m
+        return recent & self.distinct(table, lonely, partner)
+
     def annotate(self, tracks: list[Track]) -> list[Track]:
         """Each track with its ``stable_id`` and, when named, ``identity``."""
         if not tracks:
@@ -240,12 +283,19 @@ class AppearanceIdentity:
 
     # --------------------------------------------------------------- learning
 
-    def _surroundings(self, table: TrackTable, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per detection: no other track near (isolated), and which tracks are far."""
+    def _surroundings(
+        self, table: TrackTable, xy: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where each detection is among the tracks.
+
+        Per detection: no other track near (isolated), which tracks are far, and no
+        other track within ``share_distance_m`` (alone).
+        """
         gap = np.linalg.norm(xy[:, None, :] - table.x[None, :, 0:2], axis=2)
         far = gap > ISOLATION_M
         isolated = (~far).sum(axis=1) <= 1
-        return isolated, far
+        alone = (gap <= self.cfg.share_distance_m).sum(axis=1) <= 1
+        return isolated, far, alone
 
     def _learn_likelihood(
         self,

@@ -42,6 +42,16 @@ class NullIdentity:
     ) -> None:
         """Nothing to forget."""
 
+    def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
+        """Nothing known: no pair is known to be two people."""
+        return np.zeros(len(rows_a), dtype=bool)
+
+    def shares(
+        self, table: TrackTable, lonely: np.ndarray, partner: np.ndarray, t: float
+    ) -> np.ndarray:
+        """No track shares another's detection."""
+        return np.zeros(len(lonely), dtype=bool)
+
     def annotate(self, tracks: list[Track]) -> list[Track]:
         """The tracks unchanged."""
         return tracks
