@@ -197,7 +197,11 @@ class IdentityModel(Protocol):
         dets: DetectionArrays,
         t: float,
     ) -> None:
-        """Tracks ``rows`` were updated with detections ``cols`` at time ``t``."""
+        """Tracks ``rows`` were updated with detections ``cols`` at time ``t``.
+
+        ``certain`` marks the pairs motion alone made certain (each the only one in the
+        other's gate): what an identity model may learn "same person" from.
+        """
 
     def started(
         self, table: TrackTable, rows: np.ndarray, dets: DetectionArrays, t: float

@@ -163,6 +163,7 @@ class ForgetfulIdentity:
         cols: np.ndarray,
         dets: DetectionArrays,
         t: float,
+        certain: np.ndarray | None = None,
     ) -> None:
         for ident in table.ids[rows].tolist():
             self.counts[ident] = self.counts.get(ident, 0) + 1

@@ -45,8 +45,8 @@ from openptrack_py.tracking.identity.roster import Roster
 from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
 
 ISOLATION_M = 1.5
-"""A detection with no other track within this is certainly its own track's person (a
-"same" sample), and certainly not the person of a track farther than this."""
+"""A detection is certainly not the person of a track farther than this (a "different"
+sample)."""
 DISTINCT_OBSERVATIONS = 10
 """Clean signatures each of two tracks needs before they can be judged two people."""
 MAX_DIFFERENT_SAMPLES = 64
@@ -151,6 +151,7 @@ class AppearanceIdentity:
         cols: np.ndarray,
         dets: DetectionArrays,
         t: float,
+        certain: np.ndarray | None = None,
     ) -> None:
         """Learn from the step's updates, gather evidence, take decisions."""
         looks = dets.looks
@@ -159,10 +160,12 @@ class AppearanceIdentity:
         m = self.models
         mrows = m.rows(table.ids[rows])
         ok = mrows >= 0
-        rows, cols, mrows = rows[ok], cols[ok], mrows[ok]
+        if certain is None:
+            certain = np.zeros(len(rows), dtype=bool)
+        rows, cols, mrows, certain = rows[ok], cols[ok], mrows[ok], certain[ok]
         m.seen[mrows] = t
         fit_c, fit_e = m.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
-        isolated, far, alone = self._surroundings(table, dets.xy[cols])
+        far, alone = self._surroundings(table, dets.xy[cols])
         # a detection with another person within a body width may be both of them in
         # one blob: its colours are theirs mixed
         clean = looks.clean[cols] & alone
@@ -173,7 +176,7 @@ class AppearanceIdentity:
             ready = m.sig_n >= self.cfg.min_observations
             self._learn_likelihood(
                 self.colour, m.sig, ready, mrows, looks.signature[cols], use & confirmed,
-                isolated, far, table, _rowwise_hellinger, hellinger,
+                certain, far, table, _rowwise_hellinger, hellinger,
             )  # fmt: skip
             m.learn_colour(mrows[use], looks.signature[cols[use]], self.cfg.model_rate)
         if fit_e:
@@ -181,7 +184,7 @@ class AppearanceIdentity:
             ready = m.emb_w > 0
             self._learn_likelihood(
                 self.face, m.emb, ready, mrows, looks.embedding[cols], use & confirmed,
-                isolated, far, table, _rowwise_cosine, cosine_distance,
+                certain, far, table, _rowwise_cosine, cosine_distance,
             )  # fmt: skip
             m.learn_embedding(
                 mrows[use], looks.embedding[cols[use]], looks.embedding_weight[cols[use]],
@@ -283,19 +286,16 @@ class AppearanceIdentity:
 
     # --------------------------------------------------------------- learning
 
-    def _surroundings(
-        self, table: TrackTable, xy: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _surroundings(self, table: TrackTable, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Where each detection is among the tracks.
 
-        Per detection: no other track near (isolated), which tracks are far, and no
-        other track within ``share_distance_m`` (alone).
+        Per detection: which tracks are far (certainly someone else), and whether no
+        other track is within ``share_distance_m`` (alone).
         """
         gap = np.linalg.norm(xy[:, None, :] - table.x[None, :, 0:2], axis=2)
         far = gap > ISOLATION_M
-        isolated = (~far).sum(axis=1) <= 1
         alone = (gap <= self.cfg.share_distance_m).sum(axis=1) <= 1
-        return isolated, far, alone
+        return far, alone
 
     def _learn_likelihood(
         self,
@@ -305,14 +305,14 @@ class AppearanceIdentity:
         mrows: np.ndarray,
         looks: np.ndarray,
         use: np.ndarray,
-        isolated: np.ndarray,
+        certain: np.ndarray,
         far: np.ndarray,
         table: TrackTable,
         rowwise,
         pairwise,
     ) -> None:
         """Same-person and different-person distances from this step's updates."""
-        same_sel = use & isolated & ready[mrows]
+        same_sel = use & certain & ready[mrows]
         same = rowwise(refs[mrows[same_sel]], looks[same_sel])
         others = self.models.rows(table.ids)
         valid = (others >= 0) & table.confirmed

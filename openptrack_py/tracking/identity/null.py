@@ -29,6 +29,7 @@ class NullIdentity:
         cols: np.ndarray,
         dets: DetectionArrays,
         t: float,
+        certain: np.ndarray | None = None,
     ) -> None:
         """Nothing to learn."""
 
