@@ -13,7 +13,7 @@ from openptrack_py.cli import available_nodes, build_parser
 from tests.conftest import ROOT, python_env
 
 SUBCOMMANDS = [
-    "launch", "node", "status", "echo", "config", "eval", "scenarios", "show-config",
+    "launch", "node", "status", "echo", "config", "roster", "eval", "scenarios", "show-config",
     "record-sensor", "detect", "eval-detector", "certs",
 ]  # fmt: skip
 
@@ -92,10 +92,13 @@ def test_missing_network_file_names_the_presets() -> None:
     )
 
 
-def test_scenarios_lists_all_six() -> None:
+def test_scenarios_lists_every_scenario() -> None:
     result = _cli("scenarios")
     names = [line.split()[0] for line in result.stdout.splitlines()]
-    assert names == ["crowd", "distance", "occlusions", "classroom", "installation", "stress"]
+    assert names == [
+        "crowd", "distance", "occlusions", "classroom", "installation", "stress", "reentry",
+        "uniforms",
+    ]  # fmt: skip
 
 
 def test_eval_json_has_the_documented_keys() -> None:

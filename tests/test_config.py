@@ -99,8 +99,8 @@ def test_no_file_gives_defaults() -> None:
         (
             "sim.sceanrio=crowd",
             "sim.sceanrio: unknown key; did you mean 'scenario'? (allowed: duration_s, "
-            "ground_truth_rate_hz, host, profile, scenario, seed, sensor_model, speed, "
-            "start_time, use_scenario_sensors)",
+            "embeddings, ground_truth_rate_hz, host, profile, scenario, seed, sensor_model, "
+            "speed, start_time, use_scenario_sensors)",
         ),
         (
             "sensors.k2_b.pose.pich_deg=10",

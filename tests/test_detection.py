@@ -26,7 +26,15 @@ from openptrack_py.config import (
     Pose,
     SensorConfig,
 )
-from openptrack_py.detection.appearance import hue_correlation, hue_histograms
+from openptrack_py.detection.appearance import (
+    ACHROMATIC_BINS,
+    bhattacharyya,
+    colour_signatures,
+    hue_correlation,
+    hue_histograms,
+    rgb_to_hsv,
+    signature_bins,
+)
 from openptrack_py.detection.background import BackgroundModel
 from openptrack_py.detection.frame import Frame, Intrinsics
 from openptrack_py.detection.ground import (
@@ -541,6 +549,83 @@ def test_hue_histograms_of_pure_colours() -> None:
     mixed = hue_histograms(rgb[:2].astype(np.uint8), np.array([0, 0]), 1, bins=16)[0]
     assert mixed[0] == mixed[5] and abs(int(mixed.sum()) - 255) <= 1  # half and half
     assert hue_histograms(rgb.astype(np.uint8), np.full(len(rgb), -1), 2).sum() == 0
+
+
+# Bins of the 16 + 3 signature: hue sectors of 22.5 degrees, then dark, grey, light.
+_DARK, _GREY, _LIGHT = 16, 17, 18
+
+
+def test_colour_signatures_have_hue_bins_then_dark_grey_and_light() -> None:
+    pixels = {
+        0: (255, 0, 0),  # red: hue bin 0
+        1: (0, 160, 0),  # green: 120 degrees, bin 5
+        2: (20, 20, 120),  # navy: 240 degrees, bin 10
+        3: (12, 10, 14),  # black: dark
+        4: (128, 128, 128),  # grey
+        5: (240, 238, 236),  # white: light
+        6: (200, 190, 182),  # greige: too little saturation for a hue, light
+        7: (40, 40, 40),  # charcoal: below the hue's value floor, dark
+    }
+    rgb = np.array([pixels[k] for k in sorted(pixels)] * 10, dtype=np.uint8)
+    labels = np.array(sorted(pixels) * 10)
+    sig = colour_signatures(rgb, labels, 9, bins=16)
+    assert sig.shape == (9, 16 + ACHROMATIC_BINS) and sig.dtype == np.uint8
+    expected = [0, 5, 10, _DARK, _GREY, _LIGHT, _LIGHT, _DARK]
+    assert [int(np.argmax(row)) for row in sig[:8]] == expected
+    for row in sig[:8]:
+        assert row.max() == 255 and int(row.sum()) == 255
+    assert (sig[8] == 0).all()  # no samples: no signature
+    # a red top over black trousers: half hue, half dark
+    mixed = colour_signatures(rgb[[0, 3]], np.array([0, 0]), 1)[0]
+    assert mixed[0] == mixed[_DARK] and abs(int(mixed.sum()) - 255) <= 1
+    # the hue-only histogram of the same pixels still ignores what has no hue
+    assert (hue_histograms(rgb, labels, 9, bins=16)[3:8] == 0).all()
+    # other hue resolutions keep three achromatic bins at the end
+    eight = colour_signatures(rgb, labels, 9, bins=8)
+    assert eight.shape == (9, 11) and int(np.argmax(eight[4])) == 9
+
+
+def test_signature_bins_agree_with_the_rgb_path() -> None:
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(0, 256, (500, 3)).astype(np.uint8)
+    hsv = rgb_to_hsv(rgb)
+    assert hsv[:, 0].min() >= 0 and hsv[:, 0].max() < 360
+    which = signature_bins(hsv[:, 0], hsv[:, 1], hsv[:, 2], bins=16)
+    sig = colour_signatures(rgb, np.arange(500), 500, bins=16)
+    assert (np.argmax(sig, axis=1) == which).all()
+    # hue wraps: -10 degrees is the last sector, 370 the first
+    assert signature_bins(np.array([-10.0, 370.0]), np.ones(2), np.ones(2)).tolist() == [15, 0]
+
+
+def test_bhattacharyya_compares_signatures_of_one_length() -> None:
+    a = np.array([255, 0, 0, 0])
+    b = np.array([0, 0, 128, 127])
+    assert bhattacharyya(a, a) == pytest.approx(1.0)
+    assert bhattacharyya(a, b) == 0.0
+    assert bhattacharyya(np.zeros(4), a) == 0.0
+    assert 0.0 < bhattacharyya(np.array([128, 127, 0, 0]), a) < 1.0
+    with pytest.raises(ValueError, match="differ"):
+        bhattacharyya(a, np.zeros(5))
+
+
+@pytest.mark.parametrize(
+    ("saturation", "value", "bin_"),
+    [(0.05, 0.1, _DARK), (0.03, 0.55, _GREY), (0.04, 0.92, _LIGHT)],
+    ids=["black", "grey", "white"],
+)
+def test_detector_signature_sees_black_grey_and_white_clothes(
+    saturation: float, value: float, bin_: int
+) -> None:
+    """The real detector on a rendered person: achromatic tops fill achromatic bins."""
+    person = dataclasses.replace(
+        ONE, top_saturation=np.array([saturation]), top_value=np.array([value])
+    )
+    shot = _renderer(SENSOR, ROOM, seed=2).render(person)
+    (found,) = _detector(SENSOR, seed=2).detect(shot.frame).detections
+    sig = np.array(found.appearance)
+    assert len(sig) == 16 + ACHROMATIC_BINS
+    assert sig[bin_] > 0.6 * sig.sum()
+    assert sig[:16].sum() < 0.25 * sig.sum()  # skin and hair only
 
 
 def test_appearance_tells_people_apart_by_their_clothes() -> None:

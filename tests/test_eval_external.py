@@ -26,7 +26,7 @@ from openptrack_py.eval.external import (
     read_ground_truth,
     read_tracks,
 )
-from openptrack_py.eval.runner import TruthFeed
+from openptrack_py.eval.oracle import TruthFeed
 from openptrack_py.messages import encode_detection_batch, encode_ground_truth, encode_track_batch
 from openptrack_py.messages.ground_truth import GroundTruthFrame
 from openptrack_py.messages.track import Track, TrackBatch

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from openptrack_py.errors import ConfigError
-from openptrack_py.eval.runner import Hypotheses, TrackerFeed, TruthFeed, evaluate
+from openptrack_py.eval.oracle import TruthFeed
+from openptrack_py.eval.runner import Hypotheses, TrackerFeed, evaluate
 from openptrack_py.messages import DetectionBatch, GroundTruthFrame, Track, TrackBatch
 from openptrack_py.sim import DEFAULT_START_TIME, build_scenario
 from openptrack_py.sim.simulator import SensorFrame, TruthFrame

@@ -883,6 +883,10 @@ BAD_DETECTION_FIELDS = [
     ("appearance", (0,) * (MAX_APPEARANCE_BINS + 1), "appearance"),
     ("face", (0.5, _NAN), "face[1]"),
     ("face", (0.0,) * (MAX_FACE_DIMS + 1), "face"),
+    ("face_confidence", 1.5, "face_confidence"),
+    ("face_confidence", -0.25, "face_confidence"),
+    ("face_confidence", _NAN, "face_confidence"),
+    ("face_confidence", True, "face_confidence"),
 ]
 
 
@@ -922,6 +926,58 @@ def test_a_detection_is_checked_when_built_in_the_decoders_words(
 def test_a_detection_batch_is_checked_when_built(name: str, value: Any, path: str) -> None:
     with pytest.raises(WireFormatError, match=rf"^DetectionBatch\.{re.escape(path)}: "):
         _with(GOLDEN["detections"], **{name: value})
+
+
+def test_face_confidence_round_trips_with_its_face() -> None:
+    with_face = _with(_D1, face=(0.6, -0.8), face_confidence=0.375)
+    batch = _with(GOLDEN["detections"], detections=(_D0, with_face))
+    payload = encode_detection_batch(batch)
+    assert orjson.loads(payload)["detections"][1]["face_confidence"] == 0.375
+    assert "face_confidence" not in orjson.loads(payload)["detections"][0]
+    decoded = decode_detection_batch(payload)
+    assert decoded == batch
+    assert decoded.detections[1].face_confidence == 0.375
+    assert decoded.detections[0].face_confidence is None
+    for edge in (0, 1):  # integers on the wire are numbers too
+        obj = _golden_dict("detections")
+        obj["detections"][1]["face_confidence"] = edge
+        assert decode_detection_batch(orjson.dumps(obj)).detections[1].face_confidence == edge
+
+
+@pytest.mark.parametrize(
+    "value, words",
+    [
+        (1.5, "expected a number in [0, 1], got 1.5"),
+        (-0.5, "expected a number in [0, 1], got -0.5"),
+        ("0.5", "expected a number, got '0.5'"),
+        (False, "expected a number, got False"),
+        (None, "expected a number, got None"),
+    ],
+)
+def test_decoder_rejects_a_bad_face_confidence_naming_it(value: Any, words: str) -> None:
+    obj = _golden_dict("detections")
+    obj["detections"][1]["face_confidence"] = value
+    with pytest.raises(WireFormatError) as info:
+        decode_detection_batch(orjson.dumps(obj))
+    assert str(info.value) == f"detections[1].face_confidence: {words}"
+
+
+def test_face_confidence_without_a_face_is_refused() -> None:
+    with pytest.raises(WireFormatError, match=r"^Detection\.face_confidence: expected a value"):
+        _with(_D0, face_confidence=0.5)
+    obj = _golden_dict("detections")
+    assert "face" not in obj["detections"][0]
+    obj["detections"][0]["face_confidence"] = 0.5
+    with pytest.raises(WireFormatError, match=r"^detections\[0\]\.face_confidence: "):
+        decode_detection_batch(orjson.dumps(obj))
+
+
+def test_nan_face_confidence_cannot_be_encoded() -> None:
+    detection = _with(_D1, face_confidence=0.5)
+    object.__setattr__(detection, "face_confidence", _NAN)  # no producer can build this
+    batch = _with(GOLDEN["detections"], detections=(detection,))
+    with pytest.raises(WireFormatError, match="face_confidence"):
+        encode_detection_batch(batch)
 
 
 def test_valid_detections_of_any_real_number_type_are_built() -> None:

@@ -46,6 +46,7 @@ from openptrack_py.sim import (
 )
 from openptrack_py.sim.directors import ShuttleDirector
 from openptrack_py.sim.live import LivePlayer, scenario_from_network
+from openptrack_py.sim.sensor_spec import APPEARANCE_BINS, APPEARANCE_LENGTH
 from openptrack_py.sim.world import Snapshot
 from openptrack_py.transport import MemoryBus
 from tests.conftest import people_snapshot
@@ -156,7 +157,7 @@ def _segment_crosses_box(a: np.ndarray, b: np.ndarray, o: Obstacle) -> bool:
 
 
 SHORT = {"crowd": 3.0, "distance": 3.0, "occlusions": 3.0, "classroom": 3.0,
-         "installation": 3.0, "stress": 0.5}  # fmt: skip
+         "installation": 3.0, "stress": 0.5, "reentry": 3.0, "uniforms": 3.0}  # fmt: skip
 
 
 @pytest.mark.parametrize("name", SCENARIO_NAMES, ids=list(SCENARIO_NAMES))
@@ -522,6 +523,82 @@ def test_installation_visitors_enter_and_leave_by_the_doors() -> None:
         assert np.min(np.hypot(*(doors - last[1:3]).T)) < 0.8  # they leave by a door
 
 
+def _presence(scenario: Scenario, rate_hz: float = 5.0) -> dict[int, np.ndarray]:
+    """Per ground-truth id, the times (s) of the truth frames that hold the person."""
+    sim = Simulator(_without_sensors(scenario), ground_truth_rate_hz=rate_hz)
+    seen: dict[int, list[float]] = defaultdict(list)
+    for ev in sim.events(sensor_frames=False):
+        for p in ev.frame.people:
+            seen[p.id].append(ev.frame.stamp - DEFAULT_START_TIME)
+    return {k: np.array(v) for k, v in seen.items()}
+
+
+def test_reentry_people_come_back_as_themselves_after_10_to_120_s() -> None:
+    scenario = build_scenario("reentry", seed=1)
+    assert scenario.duration_s == 300.0 and len(scenario.sensors) == 3
+    assert len(scenario.room.doors) == 3
+    seen = _presence(scenario)
+    assert sorted(seen) == [1, 2, 3, 4, 5, 6]  # nobody new: the same six come back
+    for pid, times in seen.items():
+        gaps = np.diff(times)
+        away = gaps[gaps > 0.5]
+        assert len(away) >= 2, f"person {pid} came back {len(away)} times"
+        assert np.all((away >= 10.0) & (away <= 121.0)), away
+    # they come back in the clothes they left in
+    sim = Simulator(_without_sensors(scenario))
+    looks: dict[int, set[tuple[float, ...]]] = defaultdict(set)
+    for t in np.arange(0.0, 300.0, 1.0):
+        snap = sim.world.state_at(float(t))
+        top, bottom = snap.clothing()
+        for i, pid in enumerate(snap.ids.tolist()):
+            looks[pid].add((*top[i], *bottom[i], snap.height[i]))
+    assert all(len(v) == 1 for v in looks.values())
+    # a door is where they leave and where they come back
+    truth = _tracks(_events(_without_sensors(scenario)))
+    doors = np.array([(0.3, 3.0), (7.7, 1.2), (4.0, 0.3)])
+    for pid, rows in truth.items():
+        breaks = np.flatnonzero(np.diff(rows[:, 0]) > 0.5)
+        for b in breaks:
+            for xy in (rows[b, 1:3], rows[b + 1, 1:3]):
+                assert np.min(np.linalg.norm(doors - xy, axis=1)) < 0.6, (pid, xy)
+
+
+def test_reentry_people_option() -> None:
+    assert len(_presence(build_scenario("reentry", seed=0, duration_s=2.0, people=3))) == 3
+
+
+def test_a_returning_person_keeps_their_id() -> None:
+    world = World(Room(6.0, 6.0), _Push([(1.0, 1.0), (3.0, 3.0)], (0.0, 0.0)), _rng(0))
+    spec = PersonSpec("adult", 1.8, 0.2, 10.0, 200.0, 1.0, 0.1, 0.9, 0.5, 0.3)
+    slot = int(np.flatnonzero(world.ids == 1)[0])
+    world.remove_person(slot)
+    with pytest.raises(ValueError, match="person 2 is already in the world"):
+        world.add_person(spec, (5.0, 5.0), person_id=2)
+    back = world.add_person(spec, (5.0, 5.0), person_id=1)
+    assert world.ids[back] == 1
+    snap = world.snapshot()
+    top, bottom = snap.clothing()
+    row = int(np.flatnonzero(snap.ids == 1)[0])
+    assert top[row].tolist() == [10.0, 0.1, 0.9] and bottom[row].tolist() == [200.0, 0.5, 0.3]
+    fresh = world.add_person(spec, (2.0, 5.0))
+    assert world.ids[fresh] == 3  # fresh ids never repeat one in use or used
+    world.add_person(spec, (4.0, 1.0), person_id=9)
+    assert world.ids[world.add_person(spec, (1.0, 4.0))] == 10
+    with pytest.raises(ValueError, match=">= 1"):
+        world.add_person(spec, (1.0, 2.0), person_id=0)
+
+
+def test_standing_people_keep_facing_where_they_walked() -> None:
+    world = World(Room(10.0, 10.0), _Push([(2.0, 5.0)], (1.0, 0.0)), _rng(0))
+    world.advance_to(2.0)
+    assert world.snapshot().facing()[0] == pytest.approx([1.0, 0.0], abs=1e-6)
+    world.director = _Push([], (0.0, 0.0))  # stop
+    world.advance_to(5.0)
+    snap = world.snapshot()
+    assert np.linalg.norm(snap.vel[0]) < 0.01
+    assert snap.facing()[0] == pytest.approx([1.0, 0.0], abs=1e-6)
+
+
 def test_stress_has_many_people_and_ten_sensors() -> None:
     scenario = build_scenario("stress", seed=0, duration_s=0.5)
     assert len(scenario.sensors) == 10
@@ -824,7 +901,7 @@ def test_detection_fields_in_a_scenario() -> None:
             u, v, w, h = det.bbox
             assert u >= 0 and v >= 0 and w >= 0 and h >= 0
             assert u + w <= width - 1 and v + h <= height - 1
-            assert len(det.appearance) == 16
+            assert len(det.appearance) == APPEARANCE_LENGTH
             assert all(0 <= b <= 255 for b in det.appearance)
             assert 247 <= sum(det.appearance) <= 263
             assert det.distance > 0.0
@@ -858,6 +935,84 @@ def test_appearance_reflects_clothing_colour() -> None:
     assert np.abs(red - cyan).sum() > 200
     # the same person looks alike from frame to frame
     assert np.abs(hists[1][0] - hists[1][1]).sum() < np.abs(red - cyan).sum() / 2
+
+
+def _signatures(model: SensorModel, snap: Snapshot, frames: int) -> dict[int, np.ndarray]:
+    """Mean signature per person over ``frames`` frames."""
+    rows: dict[int, list[np.ndarray]] = defaultdict(list)
+    for _ in range(frames):
+        obs = model.observe(snap)
+        for det, pid in zip(obs.detections, obs.person_ids, strict=True):
+            if pid:
+                rows[pid].append(np.array(det.appearance))
+    return {pid: np.mean(v, axis=0) for pid, v in rows.items()}
+
+
+def test_appearance_of_black_grey_and_white_clothes_fills_the_achromatic_bins() -> None:
+    dark, grey, light = APPEARANCE_BINS, APPEARANCE_BINS + 1, APPEARANCE_BINS + 2
+    snap = dataclasses.replace(
+        _snap([(3.0, 3.5, 1.7, 0.2, 0.0, 0.0), (4.0, 6.5, 1.7, 0.2, 0.0, 220.0)]),
+        top_saturation=np.array([0.05, 0.04]),
+        top_value=np.array([0.1, 0.92]),  # black, white
+        bottom_saturation=np.array([0.03, 0.5]),
+        bottom_value=np.array([0.55, 0.45]),  # grey, denim
+    )
+    sig = _signatures(_model(miss_probability=0.0, clutter_per_frame=0.0), snap, 20)
+    black_grey, white_denim = sig[1], sig[2]
+    assert black_grey[dark] > 0.45 * 255 and black_grey[grey] > 0.25 * 255
+    assert black_grey[:APPEARANCE_BINS].sum() < 0.15 * 255  # a little skin and hair
+    assert white_denim[light] + white_denim[grey] > 0.4 * 255
+    assert np.argmax(white_denim[:APPEARANCE_BINS]) in (9, 10)  # 215-225 degrees
+
+
+def test_each_sensor_has_its_own_cast_which_moves_no_detection() -> None:
+    spec = SensorSpec(
+        id="s", type=SENSOR_TYPES["kinect2"], pose=FRONT, rate_hz=30.0, clutter_per_frame=1.0
+    )
+    snap = _snap([(3.0, 4.0, 1.7, 0.2, 100.0, 300.0), (5.0, 6.0, 1.7, 0.2, 40.0, 200.0)])
+    models = [
+        SensorModel(spec, Room(20.0, 10.0), _rng(3), appearance_rng=_rng(seed))
+        for seed in (10, 11)
+    ]
+    assert models[0].signatures.cast != models[1].signatures.cast
+    assert abs(models[0].signatures.cast.hue_shift_deg) <= 8.0
+    changed = 0
+    for _ in range(30):
+        a, b = (m.observe(snap) for m in models)
+        assert a.person_ids == b.person_ids
+        for da, db in zip(a.detections, b.detections, strict=True):
+            assert (da.x, da.y, da.z, da.height, da.confidence, da.bbox) == (
+                db.x, db.y, db.z, db.height, db.confidence, db.bbox,
+            )  # fmt: skip
+            changed += da.appearance != db.appearance
+            assert len(da.appearance) == APPEARANCE_LENGTH
+    assert changed > 30
+    # without an appearance generator of its own, the model derives one from its seed
+    # without drawing from the main one: positions are the same again
+    derived = SensorModel(spec, Room(20.0, 10.0), _rng(3))
+    first = SensorModel(spec, Room(20.0, 10.0), _rng(3), appearance_rng=_rng(10)).observe(snap)
+    again = derived.observe(snap)
+    assert [(d.x, d.y) for d in first.detections] == [(d.x, d.y) for d in again.detections]
+
+
+def test_a_person_half_hidden_by_a_nearer_one_takes_on_their_colours() -> None:
+    model = _model(miss_probability=0.0, clutter_per_frame=0.0)
+    alone = _snap([(6.0, 5.0, 1.8, 0.2, 0.0, 0.0)])  # red, seen straight on
+    hidden = _snap([(6.0, 5.0, 1.8, 0.2, 0.0, 0.0), (3.0, 5.22, 1.7, 0.2, 240.0, 240.0)])
+    blue = 10  # 240 degrees
+    red_alone = _signatures(model, alone, 10)[1]
+    red_hidden = _signatures(model, hidden, 40)
+    assert red_alone[blue] < 10
+    assert red_hidden[1][blue] > 40  # the blue person in front lends their colours
+    assert red_hidden[2][0] < 0.5 * red_hidden[1][blue]  # the one behind lends less
+    assert red_hidden[2][blue] > 150
+
+
+def test_clutter_has_random_signatures() -> None:
+    model = _model(clutter_per_frame=3.0)
+    sigs = [np.array(d.appearance) for _ in range(10) for d in model.observe(_snap([])).detections]
+    assert len(sigs) > 10 and all(len(s) == APPEARANCE_LENGTH for s in sigs)
+    assert len({int(np.argmax(s)) for s in sigs}) > 5
 
 
 def test_bbox_grows_as_people_come_closer() -> None:

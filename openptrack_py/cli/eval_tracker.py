@@ -55,6 +55,11 @@ def add_parser(subparsers: Subparsers) -> None:
         choices=PROFILES,
         help="simulator noise profile (default: realistic, where the simulator has profiles)",
     )
+    p.add_argument(
+        "--embeddings",
+        action="store_true",
+        help="sensors also send identity embeddings (a face recogniser's output, simulated)",
+    )
     p.add_argument("--tracker", default=None, help="tracker to evaluate (ukf, or truth)")
     p.add_argument("--tracker-config", type=Path, help="YAML file of tracker parameters")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
@@ -113,6 +118,8 @@ def _run_scenarios(args: argparse.Namespace) -> int:
     profile = args.profile
     if profile is None and simulator_has_profiles():
         profile = DEFAULT_PROFILE
+    if args.embeddings:
+        profile = f"{profile or DEFAULT_PROFILE}+embeddings"
     scenarios = args.scenario or ["crowd"]
     if "all" in scenarios:
         scenarios = list(SCENARIO_NAMES)
@@ -134,7 +141,7 @@ def _run_scenarios(args: argparse.Namespace) -> int:
             head = {"tracker": tracker} | ({"profile": profile} if profile else {})
             rows.append(head | result.to_dict())
     columns = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "fp", "fn"]
-    columns += ["duplicates", "frames", "gt_objects", "realtime_factor"]
+    columns += ["duplicates", "returns", "returns_kept", "frames", "realtime_factor"]
     print_rows(rows, columns, args.format)
     return 0
 
@@ -149,6 +156,7 @@ def _run_files(args: argparse.Namespace) -> int:
             ("--seed", args.seed),
             ("--duration", args.duration is not None),
             ("--profile", args.profile),
+            ("--embeddings", args.embeddings),
             ("--sensor-model", args.sensor_model != "detections"),
         )
         if given

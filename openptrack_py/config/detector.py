@@ -139,7 +139,8 @@ class DetectorConfig(StrictModel):
         The visible surface is nearer than the body's centre: positions are pushed this
         far along the viewing ray.
     appearance_bins : int
-        Hue bins of the appearance signature.
+        Hue bins of the appearance signature (which has 3 achromatic bins after them:
+        dark, grey, light; ``openptrack_py.detection.appearance``).
     rate_hz : float, optional
         Frames per second to process (the sensor's rate if omitted); older frames are
         dropped when the detector falls behind.

@@ -8,7 +8,9 @@ from pydantic import Field
 
 from openptrack_py.config.base import StrictModel
 
-ScenarioName = Literal["crowd", "distance", "occlusions", "classroom", "installation", "stress"]
+ScenarioName = Literal[
+    "crowd", "distance", "occlusions", "classroom", "installation", "stress", "reentry", "uniforms"
+]
 """Named scenarios (built by :mod:`openptrack_py.sim.scenarios`)."""
 
 ProfileName = Literal["ideal", "realistic", "harsh"]
@@ -35,6 +37,10 @@ class SimConfig(StrictModel):
         ``realistic`` is calibrated from what real people detectors deliver, ``ideal``
         is the sensor types' noise alone, ``harsh`` a badly calibrated, cluttered room
         (``openptrack_py.sim.profiles``).
+    embeddings : bool
+        Detections of people facing a sensor within reach carry simulated identity
+        embeddings (``face`` and ``face_confidence``; ``openptrack_py.sim.embeddings``):
+        a stand-in for a face recogniser (``sensor_model: detections``).
     sensor_model : {"detections", "rgbd"}
         Level of sensor simulation: ``detections`` draws detections directly from the
         ground truth through each sensor's field of view, occlusion and noise model;
@@ -55,6 +61,7 @@ class SimConfig(StrictModel):
     duration_s: float | None = Field(None, gt=0.0)
     speed: float = Field(1.0, gt=0.0, le=100.0)
     profile: ProfileName = "realistic"
+    embeddings: bool = False
     sensor_model: Literal["detections", "rgbd"] = "detections"
     ground_truth_rate_hz: float = Field(30.0, gt=0.0, le=240.0)
     use_scenario_sensors: bool = False

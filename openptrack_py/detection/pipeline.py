@@ -9,7 +9,8 @@ Steps, each a small component with its settings in :class:`~openptrack_py.config
 4. **background** — optional removal of the learned static scene (:mod:`.background`);
 5. **downsample** — one point per voxel of ``voxel_size_m / 2``;
 6. **cluster** — floor-grid components split at heads (:mod:`.clustering`);
-7. **describe** — position, height, distance, image box and hue signature per blob;
+7. **describe** — position, height, distance, image box and colour signature per blob
+   (:mod:`.appearance`: hue bins, then dark, grey and light bins);
 8. **hog** — optional HOG check on the colour or infrared image (:mod:`.hog`).
 
 Positions: the mean of a blob's head points on the floor, pushed ``surface_offset_m``
@@ -35,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from openptrack_py.config import DetectorConfig
-from openptrack_py.detection.appearance import hue_histograms
+from openptrack_py.detection.appearance import colour_signatures, signature_length
 from openptrack_py.detection.background import BackgroundModel, voxel_keys
 from openptrack_py.detection.clustering import Blobs, HeadClusterer
 from openptrack_py.detection.frame import Frame, Intrinsics
@@ -73,7 +74,8 @@ class PersonDetection:
     bbox : tuple of int
         Image box ``(u, v, width, height)`` in full-resolution pixels.
     appearance : tuple of int
-        Quantised hue histogram.
+        Colour signature (:func:`~openptrack_py.detection.appearance.colour_signatures`:
+        hue bins, then dark, grey and light); empty without colour.
     points : int
         Points supporting the blob (after down-sampling).
     hog_margin : float or None
@@ -352,10 +354,10 @@ class PeopleDetector:
         support = np.minimum(1.0, blobs.points / (4.0 * self.clusterer.min_points))
         confidence = 0.55 + 0.4 * support
         boxes = self._boxes(frame, camera_from_floor, xy, blobs)
-        looks = np.zeros((k, cfg.appearance_bins), dtype=np.uint8)
+        looks = np.zeros((k, signature_length(cfg.appearance_bins)), dtype=np.uint8)
         if colours is not None:
             labels = blobs.labels
-            looks = hue_histograms(colours[sel], labels, k, bins=cfg.appearance_bins)
+            looks = colour_signatures(colours[sel], labels, k, bins=cfg.appearance_bins)
         return [
             PersonDetection(
                 position=tuple(float(v) for v in world[i]),

@@ -9,8 +9,8 @@ The harness is the same whatever produces the hypotheses:
   ground-truth time. :class:`TrackerFeed` runs a tracker on the sensor batches in
   arrival order and extrapolates its latest output to the ground-truth time with each
   track's velocity; if its latest output is older than ``stale_after_s`` the frame
-  counts as missing (every object a miss). :class:`TruthFeed` replays the ground truth
-  itself, optionally with injected faults, to prove the harness.
+  counts as missing (every object a miss). :class:`~openptrack_py.eval.oracle.TruthFeed`
+  replays the ground truth itself, optionally with injected faults, to prove the harness.
 * A hypothesis within ``max_distance_m`` of a person who is present but not covered
   (walking out of view, say) is neither rewarded nor punished: it is removed before
   scoring, like a "don't care" region.
@@ -169,54 +169,6 @@ class TrackerFeed:
         ids = np.array([client_id(tr) for tr in tracks], dtype=np.int64)
         xy = np.array([(tr.x + tr.vx * dt, tr.y + tr.vy * dt) for tr in tracks]).reshape(-1, 2)
         return Hypotheses(ids, xy)
-
-
-@dataclass
-class TruthFeed:
-    """Reports the ground truth itself, optionally with injected faults.
-
-    Parameters
-    ----------
-    relabel : tuple of (int, float), optional
-        ``(person_id, from_time_s)``: that person's id changes from then on (one
-        identity switch).
-    swap : tuple of (int, int, float), optional
-        ``(person_a, person_b, from_time_s)``: two people exchange ids (two switches).
-    drop : tuple of (float, float), optional
-        ``(start_s, end_s)``: no output at all in that window (every object a miss).
-    start_time : float
-        Scenario start (UNIX), to which the fault times are relative.
-    """
-
-    relabel: tuple[int, float] | None = None
-    swap: tuple[int, int, float] | None = None
-    drop: tuple[float, float] | None = None
-    start_time: float = 0.0
-    _truth: GroundTruthFrame | None = None
-
-    def on_sensor_frame(self, frame: SensorFrame) -> None:
-        """The oracle ignores sensors."""
-
-    def on_truth_frame(self, frame: TruthFrame) -> None:
-        """Remember the latest truth."""
-        self._truth = frame.frame
-
-    def hypotheses_at(self, t: float) -> Hypotheses | None:
-        """The truth at ``t`` with the configured faults."""
-        rel = t - self.start_time
-        if self._truth is None or (self.drop and self.drop[0] <= rel < self.drop[1]):
-            return None
-        ids = []
-        for p in self._truth.people:
-            pid = p.id
-            if self.relabel and pid == self.relabel[0] and rel >= self.relabel[1]:
-                pid = 1_000_000 + pid
-            if self.swap and rel >= self.swap[2]:
-                a, b = self.swap[0], self.swap[1]
-                pid = b if pid == a else a if pid == b else pid
-            ids.append(pid)
-        xy = np.array([(p.x, p.y) for p in self._truth.people]).reshape(-1, 2)
-        return Hypotheses(np.array(ids, dtype=np.int64), xy)
 
 
 @dataclass(frozen=True, slots=True)

@@ -13,7 +13,8 @@ from pathlib import Path
 
 from openptrack_py.config import TrackerConfig, apply_overrides, read_yaml, validate_config
 from openptrack_py.errors import ConfigError
-from openptrack_py.eval.runner import EvalResult, HypothesisFeed, TrackerFeed, TruthFeed, evaluate
+from openptrack_py.eval.oracle import TruthFeed
+from openptrack_py.eval.runner import EvalResult, HypothesisFeed, TrackerFeed, evaluate
 from openptrack_py.sim.scenarios import Scenario, build_scenario
 from openptrack_py.sim.simulator import DEFAULT_START_TIME
 from openptrack_py.tracking import TrackingPipeline

@@ -42,7 +42,18 @@ from openptrack_py.messages.track import Track, TrackBatch, Visibility
 # ------------------------------------------------------------------------ detections
 
 _DETECTION_KEYS = frozenset(
-    {"x", "y", "z", "height", "confidence", "distance", "bbox", "appearance", "face"}
+    {
+        "x",
+        "y",
+        "z",
+        "height",
+        "confidence",
+        "distance",
+        "bbox",
+        "appearance",
+        "face",
+        "face_confidence",
+    }
 )
 _DETECTION_BATCH_KEYS = frozenset(
     {"v", "kind", "sensor_id", "seq", "stamp", "frame_id", "detections"}
@@ -80,6 +91,9 @@ def encode_detection_batch(batch: DetectionBatch) -> bytes:
             if not all(math.isfinite(v) for v in d.face):
                 raise WireFormatError("cannot encode detection: face has a non-finite value")
             item["face"] = list(d.face)
+        if d.face_confidence is not None:
+            check_finite("detection", (d.face_confidence,), "face_confidence")
+            item["face_confidence"] = d.face_confidence
         dets.append(item)
     check_finite("detection batch", (batch.stamp,), "stamp")
     return dump_message(
@@ -97,7 +111,7 @@ def encode_detection_batch(batch: DetectionBatch) -> bytes:
 
 def _decode_detection(obj: Any, path: str) -> Detection:
     check_keys(obj, _DETECTION_KEYS, path)
-    bbox = appearance = face = None
+    bbox = appearance = face = face_confidence = None
     if "bbox" in obj:
         box = read_int_list(obj, "bbox", path, -(1 << 20), 1 << 20, 4)
         if len(box) != 4 or box[2] < 0 or box[3] < 0:
@@ -111,10 +125,20 @@ def _decode_detection(obj: Any, path: str) -> Detection:
             if (type(v) is not float and type(v) is not int) or not math.isfinite(v):
                 raise fail(f"{path}face[{i}]", "a finite number", v)
         face = tuple(float(v) for v in values)
+    if "face_confidence" in obj:
+        face_confidence = read_float(obj, "face_confidence", path, 0.0, 1.0)
+        if face is None:
+            raise fail(path + "face_confidence", "a value only alongside face", face_confidence)
     try:  # fast path: six floats, whose ranges the constructor checks
         numbers = (obj["x"], obj["y"], obj["z"], obj["height"], obj["confidence"], obj["distance"])
         if all(type(v) is float for v in numbers):
-            return Detection(*numbers, bbox=bbox, appearance=appearance, face=face)
+            return Detection(
+                *numbers,
+                bbox=bbox,
+                appearance=appearance,
+                face=face,
+                face_confidence=face_confidence,
+            )
     except (KeyError, WireFormatError):
         pass  # the field by field reading below names the first bad one
     return Detection(
@@ -127,6 +151,7 @@ def _decode_detection(obj: Any, path: str) -> Detection:
         bbox=bbox,
         appearance=appearance,
         face=face,
+        face_confidence=face_confidence,
     )
 
 

@@ -100,6 +100,9 @@ class Detection:
         0-255).
     face : tuple of float, optional
         Face embedding (at most 1024 finite numbers), when a face recogniser ran.
+    face_confidence : float, optional
+        How far the embedding can be trusted, in ``[0, 1]`` (e.g. from the face's angle
+        and distance to the sensor); only with ``face``.
 
     Raises
     ------
@@ -117,6 +120,7 @@ class Detection:
     bbox: tuple[int, int, int, int] | None = None
     appearance: tuple[int, ...] | None = None
     face: tuple[float, ...] | None = None
+    face_confidence: float | None = None
 
     def __post_init__(self) -> None:
         x, y, z, height, conf, dist = (
@@ -149,6 +153,14 @@ class Detection:
             self._check_appearance(self.appearance)
         if self.face is not None:
             self._check_face(self.face)
+        if self.face_confidence is not None:
+            _number("Detection.face_confidence", self.face_confidence, 0.0, 1.0)
+            if self.face is None:
+                raise fail(
+                    "Detection.face_confidence",
+                    "a value only alongside face",
+                    self.face_confidence,
+                )
 
     def _check_numbers(self) -> None:
         _number("Detection.x", self.x, -MAX_COORD_M, MAX_COORD_M)

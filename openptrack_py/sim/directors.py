@@ -4,8 +4,9 @@ A director (:class:`~openptrack_py.sim.world.Director`) places people when the w
 and steers them every step: :class:`WaypointDirector` (walk to random goals, pause),
 :class:`ShuttleDirector` (walk fixed routes back and forth), :class:`CircleGameDirector`
 (the childcare papers' drum game: a teacher leads children around a circle, stopping and
-running with the drum) and :class:`VisitorDirector` (visitors come in by the doors, look at
-works, leave).
+running with the drum), :class:`VisitorDirector` (visitors come in by the doors, look at
+works, leave) and :class:`ReentryDirector` (the same people walk about, leave by a door
+and come back later, as themselves).
 """
 
 from __future__ import annotations
@@ -16,7 +17,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from openptrack_py.sim.world import Room, World, random_person
+from openptrack_py.sim.people import PersonSpec, random_person
+from openptrack_py.sim.walking import door_inside, steer_around
+from openptrack_py.sim.world import Room, World
+
+Dresser = Callable[[PersonSpec, int], PersonSpec]
+"""``dress(spec, index) -> spec``: a scenario's clothes for the ``index``-th person placed."""
 
 
 @dataclass
@@ -155,12 +161,16 @@ class CircleGameDirector:
         Number of children.
     rng : numpy.random.Generator
         Randomness.
+    dress : callable, optional
+        Clothes for each person (index 0 the teacher, then the children), replacing the
+        drawn ones; every draw of ``rng`` stays the same.
     """
 
     centre: tuple[float, float]
     radius: float
     children: int
     rng: np.random.Generator
+    dress: Dresser | None = None
     _phase: np.ndarray = field(init=False)
     _times: np.ndarray = field(init=False)
     _angle0: dict[int, float] = field(default_factory=dict)
@@ -190,7 +200,7 @@ class CircleGameDirector:
     def start(self, world: World) -> None:
         """Children spread evenly on the circle, the teacher just ahead of them."""
         c = np.array(self.centre)
-        teacher = world.add_person(random_person(self.rng, "adult"), c)
+        teacher = world.add_person(self._dressed(random_person(self.rng, "adult"), 0), c)
         self._teacher = teacher
         self._angle0[teacher] = math.pi / 2 + 0.35
         self._delay[teacher] = 0.0
@@ -203,13 +213,16 @@ class CircleGameDirector:
             angle = math.pi / 2 - i * spacing + float(self.rng.uniform(-0.1, 0.1)) * spacing
             r = self.radius + float(self.rng.uniform(-0.15, 0.15))
             slot = world.add_person(
-                random_person(self.rng, "child"),
+                self._dressed(random_person(self.rng, "child"), i + 1),
                 c + r * np.array([math.cos(angle), math.sin(angle)]),
             )
             self._angle0[slot] = angle
             self._radius[slot] = r
             # children react to the drum with a short, individual delay
             self._delay[slot] = float(self.rng.uniform(0.3, 1.5))
+
+    def _dressed(self, spec: PersonSpec, index: int) -> PersonSpec:
+        return spec if self.dress is None else self.dress(spec, index)
 
     def update(self, world: World, t: float) -> None:
         """Steer everyone towards their moving place on the circle."""
@@ -274,10 +287,7 @@ class VisitorDirector:
         return [np.array(self.spots[i]) + self.rng.normal(0, 0.25, 2) for i in chosen]
 
     def _door_inside(self, door: tuple[float, float]) -> np.ndarray:
-        x, y = door
-        return np.array(
-            [np.clip(x, 0.3, self.room.width - 0.3), np.clip(y, 0.3, self.room.depth - 0.3)]
-        )
+        return door_inside(self.room, door)
 
     def _admit(self, world: World, where: np.ndarray, t: float) -> None:
         kind = "child" if self.rng.random() < self.child_fraction else "adult"
@@ -327,4 +337,101 @@ class VisitorDirector:
             world.seek(slot, goal, world.speed[slot] * 0.8)
 
 
-# ------------------------------------------------------------------------ scenarios
+@dataclass
+class ReentryDirector:
+    """The same people walk about, leave by a door, stay away a while and come back.
+
+    Everyone is inside at the start. Each stay, a person walks to a few goals (pausing at
+    each), then to a door, where they leave the room; after a time drawn uniformly from
+    ``away_s`` they come back through a door (any door, drawn again) with the same
+    ground-truth id and the same clothes.
+
+    Parameters
+    ----------
+    room : Room
+        The room (its ``doors`` are the ways out and in).
+    count : int
+        Number of people.
+    sample_goal : callable
+        ``sample_goal(rng) -> (x, y)``.
+    rng : numpy.random.Generator
+        Randomness.
+    away_s : tuple of float
+        Uniform range of the time spent outside, seconds.
+    goals_per_stay : tuple of int
+        Inclusive range of the number of goals a person visits before leaving.
+    pause_s : tuple of float
+        Uniform range of the pause at each goal, seconds.
+    """
+
+    room: Room
+    count: int
+    sample_goal: Callable[[np.random.Generator], np.ndarray]
+    rng: np.random.Generator
+    away_s: tuple[float, float] = (10.0, 120.0)
+    goals_per_stay: tuple[int, int] = (1, 3)
+    pause_s: tuple[float, float] = (0.5, 3.0)
+    _specs: dict[int, PersonSpec] = field(default_factory=dict)
+    _plans: dict[int, list[np.ndarray]] = field(default_factory=dict)
+    _leaving: dict[int, bool] = field(default_factory=dict)
+    _resume_at: dict[int, float] = field(default_factory=dict)
+    _back_at: dict[int, float] = field(default_factory=dict)
+
+    def _stay(self, person: int, t: float) -> None:
+        """Plan a new stay in the room for ``person`` from time ``t``."""
+        lo, hi = self.goals_per_stay
+        goals = int(self.rng.integers(lo, hi + 1))
+        self._plans[person] = [self.sample_goal(self.rng) for _ in range(goals)]
+        self._leaving[person] = False
+        self._resume_at[person] = t
+
+    def _door(self) -> np.ndarray:
+        doors = self.room.doors
+        return door_inside(self.room, doors[int(self.rng.integers(len(doors)))])
+
+    def start(self, world: World) -> None:
+        """Everyone starts inside, at separate random points."""
+        placed: list[np.ndarray] = []
+        for _ in range(self.count):
+            for _ in range(200):
+                p = self.sample_goal(self.rng)
+                if all(np.linalg.norm(p - q) > 0.7 for q in placed):
+                    break
+            placed.append(p)
+            spec = random_person(self.rng, "adult")
+            person = int(world.ids[world.add_person(spec, p)])
+            self._specs[person] = spec
+            self._stay(person, float(self.rng.uniform(0.0, self.pause_s[1])))
+
+    def update(self, world: World, t: float) -> None:
+        """Bring back those whose time outside is over, walk the others, let them leave."""
+        for person, back in sorted(self._back_at.items()):
+            if t < back:
+                continue
+            entry = self._door()
+            if any(np.linalg.norm(world.pos[s] - entry) < 0.6 for s in world.slots):
+                self._back_at[person] = t + 0.5  # the doorway is busy: a moment later
+                continue
+            del self._back_at[person]
+            world.add_person(self._specs[person], entry, person_id=person)
+            self._stay(person, t)
+        for slot in world.slots.tolist():
+            person = int(world.ids[slot])
+            plan = self._plans[person]
+            if t < self._resume_at[person]:
+                world.v_des[slot] = 0.0
+                continue
+            if not plan:  # every goal visited: make for a door
+                self._leaving[person] = True
+                plan.append(self._door())
+            if np.linalg.norm(plan[0] - world.pos[slot]) < 0.35:
+                plan.pop(0)
+                world.v_des[slot] = 0.0
+                if self._leaving[person]:
+                    world.remove_person(slot)
+                    self._back_at[person] = t + float(self.rng.uniform(*self.away_s))
+                else:
+                    self._resume_at[person] = t + float(self.rng.uniform(*self.pause_s))
+                continue
+            way = steer_around(self.room, world.pos[slot], plan[0], world.radius[slot])
+            world.seek(slot, way, world.speed[slot])

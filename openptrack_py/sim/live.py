@@ -18,7 +18,8 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
 
     The network's ``source: sim`` sensors replace the scenario's own placement unless
     ``sim.use_scenario_sensors`` is set or the network lists no simulated sensor; the
-    sensors' noise profile is ``sim.profile``.
+    sensors' noise profile is ``sim.profile``, with identity embeddings if
+    ``sim.embeddings``.
 
     Raises
     ------
@@ -35,6 +36,7 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
         duration_s=cfg.sim.duration_s,
         sensors=sensors,
         profile=cfg.sim.profile,
+        embeddings=cfg.sim.embeddings,
     )
 
 

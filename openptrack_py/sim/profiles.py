@@ -20,6 +20,9 @@ Sweeps derive variants: ``PROFILES["realistic"].scaled(noise=2.0)``,
 :meth:`NoiseProfile.with_calibration_error`, :meth:`NoiseProfile.with_false_positives`,
 or :func:`dataclasses.replace` for any field (every variant is validated).
 
+Simulated identity embeddings (:mod:`~openptrack_py.sim.embeddings`) are off in every
+named profile: :meth:`NoiseProfile.with_embeddings` or ``"<name>+embeddings"`` has them.
+
 :func:`~openptrack_py.sim.sensor_faults.draw_sensor_faults` turns a profile into
 per-sensor figures (calibration offset, clock offset, jitter, drops, misses) drawn from
 the scenario seed; the per-frame mechanisms live in
@@ -82,6 +85,7 @@ _RANGES: dict[str, tuple[float, float]] = {
     "frame_drop_probability": (0.0, 1.0),
     "merge_distance_m": (0.0, 2.0),
     "split_duration_s": (0.0, 10.0),
+    "embedding_confusion_probability": (0.0, 1.0),
 }
 _PAIR_RANGES: dict[str, tuple[float, float]] = {
     "decoy_confidence": (0.0, 1.0),
@@ -170,6 +174,12 @@ class NoiseProfile:
         :data:`FALSE_POSITIVE_TYPE_FACTOR`); ``None``: the sensor type's own.
     split_duration_s : float
         Mean lifetime of a split blob, seconds; 0: splits last one frame (``ideal``).
+    embeddings : bool
+        People facing a sensor within reach carry a simulated identity embedding
+        (``face``, ``face_confidence``; :mod:`~openptrack_py.sim.embeddings`), drawn
+        from generators of their own: every other draw is the same either way.
+    embedding_confusion_probability : float
+        Probability that an embedding is drawn near another person's identity.
 
     Raises
     ------
@@ -201,9 +211,13 @@ class NoiseProfile:
     merge_distance_m: float = 0.3
     split_probability: float | None = None
     split_duration_s: float = 0.0
+    embeddings: bool = False
+    embedding_confusion_probability: float = 0.02
 
     def __post_init__(self) -> None:
         where = f"profile {self.name}"
+        if not isinstance(self.embeddings, bool):
+            raise ConfigError(f"{where}: embeddings must be true or false ({self.embeddings!r})")
         for key, (lo, hi) in _RANGES.items():
             _check(where, key, getattr(self, key), lo, hi)
         for key, (lo, hi) in _PAIR_RANGES.items():
@@ -301,6 +315,20 @@ class NoiseProfile:
             name=_variant(self.name, calibration_m=offset_m),
             calibration_offset_m=(offset_m, offset_m),
             calibration_yaw_deg=yaw,
+        )
+
+    def with_embeddings(self, on: bool = True, confusion: float | None = None) -> NoiseProfile:
+        """A variant with simulated identity embeddings ``on`` (or off).
+
+        ``confusion``: probability that one is another person's (the profile's if omitted).
+        """
+        name = self.name.removesuffix(EMBEDDINGS_SUFFIX)
+        rate = self.embedding_confusion_probability if confusion is None else confusion
+        return dataclasses.replace(
+            self,
+            name=name + EMBEDDINGS_SUFFIX if on else name,
+            embeddings=on,
+            embedding_confusion_probability=rate,
         )
 
     def with_false_positives(
@@ -442,9 +470,14 @@ PROFILES: Mapping[str, NoiseProfile] = MappingProxyType(
 
 PROFILE_NAMES = tuple(PROFILES)
 
+EMBEDDINGS_SUFFIX = "+embeddings"
+"""Appended to a profile's name: the profile with simulated identity embeddings on."""
+
 
 def resolve_profile(profile: str | NoiseProfile) -> NoiseProfile:
     """The profile named ``profile``, or ``profile`` itself.
+
+    ``"<name>+embeddings"``: the named profile with identity embeddings on.
 
     Raises
     ------
@@ -453,6 +486,10 @@ def resolve_profile(profile: str | NoiseProfile) -> NoiseProfile:
     """
     if isinstance(profile, NoiseProfile):
         return profile
-    if profile not in PROFILES:
-        raise ConfigError(f"profile: unknown {profile!r} (allowed: {', '.join(PROFILE_NAMES)})")
-    return PROFILES[profile]
+    base = profile.removesuffix(EMBEDDINGS_SUFFIX) if isinstance(profile, str) else profile
+    if base not in PROFILES:
+        raise ConfigError(
+            f"profile: unknown {profile!r} (allowed: {', '.join(PROFILE_NAMES)}), "
+            f"each optionally with {EMBEDDINGS_SUFFIX!r}"
+        )
+    return PROFILES[base] if base == profile else PROFILES[base].with_embeddings()

@@ -13,7 +13,8 @@ The scene:
   legs — sized
   from the person's stature and body radius (adults and children alike), facing their
   direction of motion, with legs and arms swinging while they walk. Clothing colours come
-  from the world (``top_hue`` for torso and arms, ``bottom_hue`` for hips and legs).
+  from the world (the top's for torso and arms, the bottom's for hips and legs, as
+  :meth:`~openptrack_py.sim.world.Snapshot.clothing` gives them).
   Each ellipsoid is intersected only with the pixels inside its projected bounding box,
   which keeps a frame at a few milliseconds.
 
@@ -33,6 +34,7 @@ import numpy as np
 
 from openptrack_py.detection.frame import Frame, Intrinsics
 from openptrack_py.geometry import apply, invert, world_from_optical
+from openptrack_py.sim.clothing import SKIN
 from openptrack_py.sim.sensor_spec import SensorSpec
 from openptrack_py.sim.world import Room, Snapshot
 
@@ -98,9 +100,13 @@ def _intensity(albedo: np.ndarray | float, cos: np.ndarray, range_m: np.ndarray)
     return np.clip(np.nan_to_num(value * INTENSITY_GAIN, posinf=0.0), 0, 65535).astype(np.uint16)
 
 
-def _hsv_to_rgb(h_deg: np.ndarray, s: float, v: float) -> np.ndarray:
-    """RGB in [0, 1] for hues in degrees (vectorised)."""
-    h = (np.asarray(h_deg, dtype=float) % 360.0) / 60.0
+def _hsv_to_rgb(h_deg: np.ndarray, s: np.ndarray | float, v: np.ndarray | float) -> np.ndarray:
+    """RGB in [0, 1] for hues in degrees, saturations and values on 0-1 (vectorised)."""
+    h, s, v = np.broadcast_arrays(
+        (np.asarray(h_deg, dtype=float) % 360.0) / 60.0,
+        np.asarray(s, dtype=float),
+        np.asarray(v, dtype=float),
+    )
     c = v * s
     x = c * (1 - np.abs(h % 2 - 1))
     zero = np.zeros_like(h)
@@ -117,7 +123,7 @@ def _hsv_to_rgb(h_deg: np.ndarray, s: float, v: float) -> np.ndarray:
     for k, (r, g, b) in enumerate(table):
         m = sector == k
         rgb[m] = np.stack([r[m], g[m], b[m]], axis=-1)
-    return rgb + (v - c)
+    return rgb + (v - c)[..., None]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -256,9 +262,15 @@ class DepthRenderer:
 
     @staticmethod
     def _shade(albedo: np.ndarray, normal: np.ndarray) -> np.ndarray:
-        """Ambient plus diffuse light from above; float RGB in [0, 1]."""
+        """Ambient plus diffuse light from above, as an auto-exposed camera renders it.
+
+        Float RGB in [0, 1]: a surface lit only by the ambient light (most of a standing
+        body) reads at 0.8 of its albedo, so that clothes look as light or dark as they
+        are (a white shirt light, a grey one grey); surfaces facing the light are
+        brighter, up to saturation.
+        """
         diffuse = np.clip(normal @ _LIGHT, 0.0, 1.0)
-        return albedo * (0.45 + 0.55 * diffuse)[..., None]
+        return np.minimum(albedo * (0.8 + 0.35 * diffuse)[..., None], 1.0)
 
     # ------------------------------------------------------------------- people
 
@@ -360,11 +372,12 @@ class DepthRenderer:
         head = np.zeros(n, dtype=np.int64)
         if n:
             centres, axes, radii = self.body_parts(snap)
+            top, bottom = snap.clothing()
             colours = np.stack(
                 [
-                    np.tile(_hsv_to_rgb(np.array(25.0), 0.45, 0.85), (n, 1)),
-                    _hsv_to_rgb(snap.top_hue, 0.7, 0.8),
-                    _hsv_to_rgb(snap.bottom_hue, 0.6, 0.55),
+                    np.tile(_hsv_to_rgb(np.array(SKIN[0]), SKIN[1], SKIN[2]), (n, 1)),
+                    _hsv_to_rgb(top[:, 0], top[:, 1], top[:, 2]),
+                    _hsv_to_rgb(bottom[:, 0], bottom[:, 1], bottom[:, 2]),
                 ],
                 axis=1,
             )

@@ -12,7 +12,15 @@
                 (the child-care papers' nursery class)
 ``installation`` visitors entering an art space by its doors, looking at works, leaving
 ``stress``      120 people in a 30 x 16 m hall seen by 10 sensors
+``reentry``     6 adults in the art space (3 Kinect v2, 3 doors) who walk about, leave by a
+                door, stay out 10-120 s and come back by a door as themselves (same
+                ground-truth id, same clothes): re-identification after absences
+``uniforms``    the classroom (same children, same paths as ``classroom`` with the same
+                seed) with everyone, teacher included, in one of two school uniforms
+                (navy over grey, white over navy): colour cannot tell people apart
 ==============  ==========================================================================
+
+People wear clothes drawn from realistic palettes (:mod:`~openptrack_py.sim.clothing`).
 
 The same name, seed and options always give the same people, paths and sensor noise.
 A noise profile (:mod:`~openptrack_py.sim.profiles`: ``ideal``, ``realistic``,
@@ -31,13 +39,16 @@ import numpy as np
 from openptrack_py.config import Pose, SensorConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.sensor_types import SENSOR_TYPES
+from openptrack_py.sim.clothing import SCHOOL_UNIFORMS
 from openptrack_py.sim.directors import (
     CircleGameDirector,
+    ReentryDirector,
     ShuttleDirector,
     VisitorDirector,
     WaypointDirector,
 )
 from openptrack_py.sim.false_positives import Decoy, place_decoys
+from openptrack_py.sim.people import PersonSpec
 from openptrack_py.sim.profiles import IDEAL, NoiseProfile, resolve_profile
 from openptrack_py.sim.sensor_faults import draw_sensor_faults
 from openptrack_py.sim.sensor_spec import SensorSpec
@@ -183,17 +194,39 @@ def _occlusions(seed: int, rng: np.random.Generator) -> tuple:
     return room, sensors, director, 90.0
 
 
-def _classroom(seed: int, rng: np.random.Generator, children: int | None = None) -> tuple:
+def _classroom_layout(
+    rng: np.random.Generator, children: int | None
+) -> tuple[Room, list[SensorConfig], int]:
+    """The nursery room, its sensors and the number of children."""
     room = Room(8.0, 7.0, obstacles=(Obstacle("piano", 6.6, 0.1, 7.9, 0.8, 1.2),))
     sensors = [
         _sensor("front", 4.0, 0.15, 1.1, 90.0, 2.0),
         _sensor("slant_l", 0.25, 6.75, 2.8, -45.0, 32.0),
         _sensor("slant_r", 7.75, 6.75, 2.8, -135.0, 32.0),
     ]
-    count = int(children if children is not None else rng.integers(15, 21))
+    return room, sensors, int(children if children is not None else rng.integers(15, 21))
+
+
+def _classroom(seed: int, rng: np.random.Generator, children: int | None = None) -> tuple:
+    room, sensors, count = _classroom_layout(rng, children)
 
     def director(r: np.random.Generator) -> Director:
         return CircleGameDirector((4.0, 3.6), 2.2, count, r)
+
+    return room, sensors, director, 170.0
+
+
+def _uniforms(seed: int, rng: np.random.Generator, children: int | None = None) -> tuple:
+    room, sensors, count = _classroom_layout(rng, children)
+    # Who wears which uniform comes from a generator of its own: the people and their
+    # paths are the classroom's.
+    wears = np.random.default_rng([seed, 71]).integers(0, len(SCHOOL_UNIFORMS), count + 1)
+
+    def dress(spec: PersonSpec, index: int) -> PersonSpec:
+        return spec.wearing(*SCHOOL_UNIFORMS[int(wears[index])])
+
+    def director(r: np.random.Generator) -> Director:
+        return CircleGameDirector((4.0, 3.6), 2.2, count, r, dress=dress)
 
     return room, sensors, director, 170.0
 
@@ -219,6 +252,22 @@ def _installation(seed: int, rng: np.random.Generator) -> tuple:
         return VisitorDirector(room, spots, 7.0, 8, 2, 0.2, r)
 
     return room, sensors, director, 180.0
+
+
+def _reentry(seed: int, rng: np.random.Generator, people: int = 6) -> tuple:
+    room = Room(
+        8.0,
+        6.0,
+        obstacles=(Obstacle("plinth", 3.6, 2.6, 4.4, 3.4, 1.0),),
+        doors=((0.0, 3.0), (8.0, 1.2), (4.0, 0.0)),
+    )
+    sensors = [_sensor(*s) for s in INSTALLATION_SENSORS]
+    sample = _goal_sampler(room, sensors)
+
+    def director(r: np.random.Generator) -> Director:
+        return ReentryDirector(room, people, sample, r)
+
+    return room, sensors, director, 300.0
 
 
 def _stress(seed: int, rng: np.random.Generator, people: int = 120) -> tuple:
@@ -249,6 +298,11 @@ _BUILDERS: dict[str, tuple[Callable[..., tuple], str]] = {
     "classroom": (_classroom, "a teacher and 15-20 children playing the drum game in a circle"),
     "installation": (_installation, "visitors entering an art space, looking, leaving"),
     "stress": (_stress, "120 people in a 30 x 16 m hall, 10 sensors"),
+    "reentry": (
+        _reentry,
+        "6 people who leave by a door, stay out 10-120 s and come back as themselves",
+    ),
+    "uniforms": (_uniforms, "the classroom with everyone in one of two school uniforms"),
 }
 SCENARIO_NAMES = tuple(_BUILDERS)
 _OPTION_MINIMUM = {"people": 0, "children": 1}  # an empty hall is fine, a class is not
@@ -266,12 +320,30 @@ def describe_scenarios() -> dict[str, str]:
     return {name: text for name, (_, text) in _BUILDERS.items()}
 
 
+def _check_options(name: str, options: dict[str, int]) -> None:
+    """Raise ConfigError unless ``options`` are the scenario's own, with valid values."""
+    allowed = scenario_options(name)
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise ConfigError(
+            f"scenario {name}: unknown option {', '.join(unknown)} "
+            f"(allowed: {', '.join(allowed) or 'none'})"
+        )
+    for key, value in options.items():
+        least = _OPTION_MINIMUM.get(key, 1)
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise ConfigError(
+                f"scenario {name}: {key} must be an integer >= {least} (received {value!r})"
+            )
+
+
 def build_scenario(
     name: str,
     seed: int = 0,
     duration_s: float | None = -1.0,
     sensors: Sequence[SensorConfig] | None = None,
     profile: str | NoiseProfile = "ideal",
+    embeddings: bool = False,
     **options: int,
 ) -> Scenario:
     """Build a named scenario.
@@ -288,9 +360,13 @@ def build_scenario(
         Replace the scenario's sensors (e.g. those of a network file).
     profile : {"ideal", "realistic", "harsh"} or NoiseProfile
         The sensors' noise profile. Its per-sensor draws (calibration and clock offsets,
-        jitter, drops, misses) and the room's decoys come from ``seed``.
+        jitter, drops, misses) and the room's decoys come from ``seed``. A name may end
+        in ``+embeddings`` (:func:`~openptrack_py.sim.profiles.resolve_profile`).
+    embeddings : bool
+        Turn the profile's simulated identity embeddings on (off leaves it as it is).
     **options
-        Scenario parameters: ``people`` (crowd, stress), ``children`` (classroom).
+        Scenario parameters: ``people`` (crowd, stress, reentry), ``children``
+        (classroom, uniforms).
 
     Raises
     ------
@@ -298,22 +374,12 @@ def build_scenario(
         For an unknown scenario, option or profile.
     """
     noise = resolve_profile(profile)
+    if embeddings and not noise.embeddings:
+        noise = noise.with_embeddings()
     if name not in _BUILDERS:
         raise ConfigError(f"scenario: unknown {name!r} (allowed: {', '.join(SCENARIO_NAMES)})")
     builder, description = _BUILDERS[name]
-    allowed = scenario_options(name)
-    unknown = sorted(set(options) - set(allowed))
-    if unknown:
-        raise ConfigError(
-            f"scenario {name}: unknown option {', '.join(unknown)} "
-            f"(allowed: {', '.join(allowed) or 'none'})"
-        )
-    for key, value in options.items():
-        least = _OPTION_MINIMUM.get(key, 1)
-        if isinstance(value, bool) or not isinstance(value, int) or value < least:
-            raise ConfigError(
-                f"scenario {name}: {key} must be an integer >= {least} (received {value!r})"
-            )
+    _check_options(name, options)
     root = np.random.SeedSequence(seed)
     layout_rng = np.random.default_rng(root.spawn(1)[0])
     room, default_sensors, make_director, default_duration = builder(seed, layout_rng, **options)

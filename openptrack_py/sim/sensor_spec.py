@@ -13,11 +13,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from openptrack_py.config import Pose, PoseError, SensorConfig
+from openptrack_py.detection.appearance import signature_length
 from openptrack_py.errors import ConfigError
 from openptrack_py.sensor_types import SENSOR_TYPES, SensorType
 
 APPEARANCE_BINS = 16
-"""Hue bins of the simulated appearance signature (each 22.5 degrees)."""
+"""Hue bins of the simulated appearance signature (each 22.5 degrees), as the detector's."""
+
+APPEARANCE_LENGTH = signature_length(APPEARANCE_BINS)
+"""Entries of the simulated appearance signature: the hue bins, then dark, grey, light
+(:mod:`openptrack_py.detection.appearance`)."""
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,13 @@ would find them and where it would put them:
 Confidence is on ``[0, 1]``; true people score roughly 0.6-0.95 depending on how much of
 them is visible, clutter roughly 0.1-0.5.
 
+Each detection carries a colour signature in the real detector's layout, from the
+person's clothes as this sensor sees them (:mod:`~openptrack_py.sim.signatures`) and,
+with the profile's ``embeddings`` on, a simulated identity embedding of people facing the
+sensor (:mod:`~openptrack_py.sim.embeddings`). Both draw only from the sensor's own
+appearance generator, never from the one behind positions, confidences, misses and
+clutter, so they change none of those.
+
 Field of view, ranges and rate are the sensor type's facts
 (:mod:`openptrack_py.sensor_types`); the noise, miss, clutter and split figures per type
 are the simulator's own model (:data:`SENSOR_NOISE`).
@@ -42,6 +49,7 @@ import numpy as np
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.messages.detection import Detection
 from openptrack_py.sim.centroid_error import CentroidError
+from openptrack_py.sim.embeddings import FaceRecogniser, IdentityVectors
 from openptrack_py.sim.false_positives import (
     Blob,
     Decoy,
@@ -55,18 +63,43 @@ from openptrack_py.sim.profiles import (
     NoiseProfile,
     resolve_profile,
 )
-from openptrack_py.sim.sensor_spec import APPEARANCE_BINS, SENSOR_NOISE, SensorNoise, SensorSpec
+from openptrack_py.sim.sensor_spec import (
+    APPEARANCE_BINS,
+    APPEARANCE_LENGTH,
+    SENSOR_NOISE,
+    SensorNoise,
+    SensorSpec,
+)
+from openptrack_py.sim.signatures import SignatureModel
 from openptrack_py.sim.visibility import SensorView, visible_lateral_offset, visible_summary
 from openptrack_py.sim.world import Room, Snapshot
 
 __all__ = [
     "APPEARANCE_BINS",
+    "APPEARANCE_LENGTH",
     "SENSOR_NOISE",
     "Observation",
     "SensorModel",
     "SensorNoise",
     "SensorSpec",
 ]
+
+_LEGACY_BINS = 16
+"""Bins of the hue-only signature the sensor model once drew from its main generator."""
+
+
+def _own_generator(rng: np.random.Generator, key: int) -> np.random.Generator:
+    """A generator derived from ``rng``'s seed and ``key``.
+
+    Neither draws from ``rng`` nor spawns from it: its stream and the children it
+    spawns stay as they were.
+    """
+    seq = getattr(rng.bit_generator, "seed_seq", None)
+    if not isinstance(seq, np.random.SeedSequence):
+        return np.random.default_rng(key)
+    return np.random.default_rng(
+        np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key, 1 << 20, key))
+    )
 
 
 @dataclass(frozen=True)
@@ -107,6 +140,13 @@ class SensorModel(SensorView):
         (:func:`~openptrack_py.sim.sensor_faults.draw_sensor_faults`).
     decoys : sequence of Decoy
         The scenario's static false positives; the sensor reports those it can see.
+    appearance_rng : numpy.random.Generator, optional
+        This sensor's own randomness for signatures and embeddings (its colour cast is
+        the first draw). Derived from ``rng``'s seed, without drawing from it, if omitted.
+    identities : IdentityVectors, optional
+        Everyone's identity vectors, for the profile's embeddings; shared by the sensors
+        of one scenario (:class:`~openptrack_py.sim.simulator.Simulator` seeds them with
+        the scenario seed). Seed 0 if omitted.
     """
 
     def __init__(
@@ -118,6 +158,8 @@ class SensorModel(SensorView):
         *,
         profile: NoiseProfile | str = IDEAL,
         decoys: Sequence[Decoy] = (),
+        appearance_rng: np.random.Generator | None = None,
+        identities: IdentityVectors | None = None,
     ) -> None:
         super().__init__(spec, room)
         self.rng = rng
@@ -139,6 +181,17 @@ class SensorModel(SensorView):
         self._decoys: DecoySightings | None = None
         self._splits: SplitBlobs | None = None
         self._extra_rng = rng
+        if appearance_rng is None:
+            appearance_rng = _own_generator(rng, 43)
+        self.signatures = SignatureModel(self.camera_from_world, appearance_rng)
+        self._faces: FaceRecogniser | None = None
+        if p.embeddings:
+            self._faces = FaceRecogniser(
+                identities if identities is not None else IdentityVectors(0),
+                self.origin,
+                _own_generator(appearance_rng, 1),
+                p.embedding_confusion_probability,
+            )
         if p == IDEAL:
             return
         centroid_rng, transient_rng, decoy_rng, split_rng, self._extra_rng = rng.spawn(5)
@@ -365,13 +418,13 @@ class SensorModel(SensorView):
         radius[real] = snap.radius[row_idx[real]]
         height = np.clip(np.array(heights), 0.0, 10.0)
         boxes = self._boxes(true_world[:, :2], height, radius).tolist()
-        looks = np.zeros((0, APPEARANCE_BINS), dtype=int)
         if base:
-            looks = self._appearance(snap, row_idx[:base], self.rng)
+            self._legacy_draws(self.rng, row_idx[:base])
         if len(rows) > base:
-            fake = self._appearance(snap, row_idx[base:], self._extra_rng)
-            looks = np.vstack([looks, fake])
-        looks = looks.tolist()
+            self._legacy_draws(self._extra_rng, row_idx[base:])
+        everyone = self._boxes(snap.pos, snap.height, snap.radius) if len(snap) > 1 else None
+        looks = self.signatures.measure(snap, row_idx, everyone).tolist()
+        faces = self._faces.embed(snap, row_idx) if self._faces is not None else None
         conf = np.clip(np.array(confidences), 0.0, 1.0).tolist()
         rep = reported.tolist()
         dist = distance.tolist()
@@ -386,6 +439,10 @@ class SensorModel(SensorView):
                 distance=dist[i],
                 bbox=tuple(boxes[i]),
                 appearance=tuple(looks[i]),
+                face=faces[i][0] if faces is not None and faces[i] is not None else None,
+                face_confidence=(
+                    faces[i][1] if faces is not None and faces[i] is not None else None
+                ),
             )
             for i in range(len(rows))
         )
@@ -411,22 +468,12 @@ class SensorModel(SensorView):
         v0, v1 = v.min(axis=1).astype(int), v.max(axis=1).astype(int)
         return np.column_stack([u0, v0, u1 - u0, v1 - v0])
 
-    def _appearance(
-        self, snap: Snapshot, rows: np.ndarray, rng: np.random.Generator
-    ) -> np.ndarray:
-        """Quantised hue histograms of the visible clothing (noise for clutter)."""
-        n = len(rows)
-        hist = np.full((n, APPEARANCE_BINS), 0.02)
-        real = rows >= 0
-        width = 360.0 / APPEARANCE_BINS
-        idx = np.flatnonzero(real)
-        for hues, weight in ((snap.top_hue, 0.55), (snap.bottom_hue, 0.35)):
-            b = (hues[rows[idx]] // width).astype(int) % APPEARANCE_BINS
-            for offset, share in ((0, 0.8), (1, 0.1), (-1, 0.1)):
-                np.add.at(hist, (idx, (b + offset) % APPEARANCE_BINS), weight * share)
-        hist[idx, 1] += 0.08  # skin
-        fake = np.flatnonzero(~real)
-        hist[fake] += rng.random((len(fake), APPEARANCE_BINS))
-        hist *= rng.gamma(20.0, 1 / 20.0, hist.shape)  # lighting and segmentation noise
-        hist = hist / hist.sum(axis=1, keepdims=True) * 255.0
-        return np.round(hist).astype(int)
+    @staticmethod
+    def _legacy_draws(rng: np.random.Generator, rows: np.ndarray) -> None:
+        """Draw, and discard, what the hue-only signatures used to draw from ``rng``.
+
+        Signatures now come from the appearance generator; these draws keep every later
+        draw of ``rng`` (positions, confidences, misses, clutter) as it always was.
+        """
+        rng.random((int((rows < 0).sum()), _LEGACY_BINS))
+        rng.gamma(20.0, 1 / 20.0, (len(rows), _LEGACY_BINS))

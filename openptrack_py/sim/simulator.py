@@ -19,6 +19,7 @@ from openptrack_py.config import DetectorConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.ground_truth import GroundTruthFrame, PersonState
+from openptrack_py.sim.embeddings import IdentityVectors
 from openptrack_py.sim.scenarios import Scenario, scenario_world
 from openptrack_py.sim.sensors import Observation, SensorModel, SensorSpec
 from openptrack_py.sim.world import Snapshot
@@ -68,6 +69,9 @@ class TruthFrame:
 
 Event = SensorFrame | TruthFrame
 
+_APPEARANCE_KEY = 43
+"""Seeds each sensor's appearance generator with the scenario seed and its index."""
+
 _TRUTH = -1
 
 
@@ -86,9 +90,15 @@ class SimSensorModel(Protocol):
 def _detection_models(
     scenario: Scenario, detector_config: DetectorConfig | None
 ) -> list[SimSensorModel]:
-    """The detection-level model of every sensor (the default: fast)."""
+    """The detection-level model of every sensor (the default: fast).
+
+    Each sensor has two generators: one for what it detects and where, one of its own
+    for colour signatures and identity embeddings, so that these never move a
+    detection. Identity vectors come from the scenario seed, shared by every sensor.
+    """
     specs = scenario.sensors
     _, sensor_seq = np.random.SeedSequence(scenario.seed).spawn(2)
+    identities = IdentityVectors(scenario.seed)
     return [
         SensorModel(
             spec,
@@ -96,8 +106,10 @@ def _detection_models(
             np.random.default_rng(seq),
             profile=scenario.profile,
             decoys=scenario.decoys,
+            appearance_rng=np.random.default_rng([scenario.seed, _APPEARANCE_KEY, i]),
+            identities=identities,
         )
-        for spec, seq in zip(specs, sensor_seq.spawn(len(specs)), strict=True)
+        for i, (spec, seq) in enumerate(zip(specs, sensor_seq.spawn(len(specs)), strict=True))
     ]
 
 

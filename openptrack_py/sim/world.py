@@ -5,16 +5,32 @@ driven towards the velocity its scenario's :class:`Director` asks for, and pushe
 from other people, walls and furniture. Stepping is deterministic for a given seed.
 Positions between two steps are linearly interpolated, so sensors and ground truth can
 sample the world at any time in non-decreasing order.
+
+Who the people are and a snapshot of their state are in :mod:`~openptrack_py.sim.people`
+(re-exported here). A person keeps their id for the whole run: a director may take
+someone out of the room and bring them back later with :meth:`World.add_person`'s
+``person_id``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Protocol
 
 import numpy as np
 
-PersonKind = Literal["adult", "child"]
+from openptrack_py.sim.people import PersonKind, PersonSpec, Snapshot, random_person
+
+__all__ = [
+    "Director",
+    "Obstacle",
+    "PersonKind",
+    "PersonSpec",
+    "Room",
+    "Snapshot",
+    "World",
+    "random_person",
+]
 
 # Obstacle faces as (axis, outward sign): -x, +x, -y, +y.
 _FACES = ((0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0))
@@ -97,52 +113,6 @@ class Room:
         raise RuntimeError("room has no free floor for the requested margin")
 
 
-@dataclass(frozen=True)
-class PersonSpec:
-    """What a simulated person looks like and how fast they like to walk.
-
-    Parameters
-    ----------
-    kind : {"adult", "child"}
-        Adult or child.
-    height : float
-        Stature, metres.
-    radius : float
-        Body radius on the floor, metres.
-    top_hue, bottom_hue : float
-        Clothing colours as hue angles, degrees.
-    speed : float
-        Preferred walking speed, metres per second.
-    """
-
-    kind: PersonKind
-    height: float
-    radius: float
-    top_hue: float
-    bottom_hue: float
-    speed: float
-
-
-def random_person(rng: np.random.Generator, kind: PersonKind = "adult") -> PersonSpec:
-    """Draw a person: adults 1.55-1.95 m, children 0.8-1.2 m, random clothing."""
-    if kind == "child":
-        height = float(rng.uniform(0.8, 1.2))
-        radius = float(rng.uniform(0.14, 0.18))
-        speed = float(rng.uniform(0.6, 1.0))
-    else:
-        height = float(np.clip(rng.normal(1.74, 0.09), 1.55, 1.95))
-        radius = float(rng.uniform(0.2, 0.25))
-        speed = float(rng.uniform(0.9, 1.4))
-    return PersonSpec(
-        kind=kind,
-        height=height,
-        radius=radius,
-        top_hue=float(rng.uniform(0, 360)),
-        bottom_hue=float(rng.uniform(0, 360)),
-        speed=speed,
-    )
-
-
 class Director(Protocol):
     """A scenario's script: who is in the room and where they want to go.
 
@@ -155,38 +125,6 @@ class Director(Protocol):
 
     def update(self, world: World, t: float) -> None:
         """Steer people at scenario time ``t`` (seconds since the start)."""
-
-
-@dataclass(frozen=True)
-class Snapshot:
-    """Everyone's state at one instant.
-
-    Parameters
-    ----------
-    t : float
-        Scenario time, seconds.
-    ids, kinds : ndarray
-        Person id and kind per row.
-    pos, vel : ndarray
-        ``(n, 2)`` positions (metres) and velocities (m/s).
-    height, radius : ndarray
-        Stature and body radius per row.
-    top_hue, bottom_hue : ndarray
-        Clothing hues per row, degrees.
-    """
-
-    t: float
-    ids: np.ndarray
-    kinds: np.ndarray
-    pos: np.ndarray
-    vel: np.ndarray
-    height: np.ndarray
-    radius: np.ndarray
-    top_hue: np.ndarray
-    bottom_hue: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.ids)
 
 
 class World:
@@ -231,6 +169,11 @@ class World:
         self.speed = np.zeros(capacity)
         self.top_hue = np.zeros(capacity)
         self.bottom_hue = np.zeros(capacity)
+        self.top_saturation = np.zeros(capacity)
+        self.top_value = np.zeros(capacity)
+        self.bottom_saturation = np.zeros(capacity)
+        self.bottom_value = np.zeros(capacity)
+        self.heading = np.zeros(capacity)
         self.kind = np.zeros(capacity, dtype="<U5")
         self._next_id = 1
         self.director.start(self)
@@ -243,22 +186,55 @@ class World:
         n = len(self.ids) * 2
         for name in (
             "ids", "active", "pos", "vel", "v_des", "height", "radius", "speed",
-            "top_hue", "bottom_hue", "kind",
+            "top_hue", "bottom_hue", "top_saturation", "top_value", "bottom_saturation",
+            "bottom_value", "heading", "kind",
         ):  # fmt: skip
             old = getattr(self, name)
             new = np.zeros((n, *old.shape[1:]), dtype=old.dtype)
             new[: len(old)] = old
             setattr(self, name, new)
 
-    def add_person(self, spec: PersonSpec, xy: np.ndarray | tuple[float, float]) -> int:
-        """Place a new person at ``xy``; return their slot index (their id is fresh)."""
+    HEADING_MIN_SPEED = 0.2
+    """People walking at least this fast (m/s) face where they walk; slower, they keep
+    the heading they had."""
+
+    def add_person(
+        self,
+        spec: PersonSpec,
+        xy: np.ndarray | tuple[float, float],
+        person_id: int | None = None,
+    ) -> int:
+        """Place a person at ``xy``; return their slot index.
+
+        Parameters
+        ----------
+        spec : PersonSpec
+            Who they are.
+        xy : array_like
+            Where they appear.
+        person_id : int, optional
+            Their ground-truth id: someone coming back keeps the id they had. A fresh id
+            when omitted.
+
+        Raises
+        ------
+        ValueError
+            If ``person_id`` is not positive or someone with it is in the world.
+        """
+        if person_id is not None:
+            if person_id < 1:
+                raise ValueError(f"add_person: person_id must be >= 1 (received {person_id})")
+            if (self.active & (self.ids == person_id)).any():
+                raise ValueError(f"add_person: person {person_id} is already in the world")
         free = np.flatnonzero(~self.active)
         if len(free) == 0:
             self._grow()
             free = np.flatnonzero(~self.active)
         slot = int(free[0])
-        self.ids[slot] = self._next_id
-        self._next_id += 1
+        if person_id is None:
+            person_id = self._next_id
+        self.ids[slot] = person_id
+        self._next_id = max(self._next_id, person_id + 1)
         self.active[slot] = True
         self.pos[slot] = xy
         self.vel[slot] = 0.0
@@ -268,6 +244,11 @@ class World:
         self.speed[slot] = spec.speed
         self.top_hue[slot] = spec.top_hue
         self.bottom_hue[slot] = spec.bottom_hue
+        self.top_saturation[slot] = spec.top_saturation
+        self.top_value[slot] = spec.top_value
+        self.bottom_saturation[slot] = spec.bottom_saturation
+        self.bottom_value[slot] = spec.bottom_value
+        self.heading[slot] = person_id * 2.4  # as the renderer turns a standing body
         self.kind[slot] = spec.kind
         return slot
 
@@ -304,6 +285,8 @@ class World:
             pos = pos + vel * self.dt
             pos, vel = self._constrain(pos, vel, self.radius[idx])
             self.pos[idx], self.vel[idx] = pos, vel
+            walking = np.einsum("ij,ij->i", vel, vel) >= self.HEADING_MIN_SPEED**2
+            self.heading[idx[walking]] = np.arctan2(vel[walking, 1], vel[walking, 0])
         self.t += self.dt
         self._prev, self._cur = self._cur, self.snapshot()
 
@@ -416,6 +399,11 @@ class World:
             radius=self.radius[idx].copy(),
             top_hue=self.top_hue[idx].copy(),
             bottom_hue=self.bottom_hue[idx].copy(),
+            top_saturation=self.top_saturation[idx].copy(),
+            top_value=self.top_value[idx].copy(),
+            bottom_saturation=self.bottom_saturation[idx].copy(),
+            bottom_value=self.bottom_value[idx].copy(),
+            heading=self.heading[idx].copy(),
         )
 
     def advance_to(self, t: float) -> None:
@@ -452,4 +440,9 @@ class World:
             radius=cur.radius,
             top_hue=cur.top_hue,
             bottom_hue=cur.bottom_hue,
+            top_saturation=cur.top_saturation,
+            top_value=cur.top_value,
+            bottom_saturation=cur.bottom_saturation,
+            bottom_value=cur.bottom_value,
+            heading=cur.heading,
         )

@@ -43,6 +43,7 @@ from openptrack_py.tracking.base import (
     SensorModel,
     Stateful,
 )
+from openptrack_py.tracking.blobs import share_blobs, shared_noise
 from openptrack_py.tracking.bookkeeping import (
     absorb,
     damp_unseen,
@@ -66,10 +67,6 @@ from openptrack_py.tracking.state import (
 from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKalmanFilter
 
 log = logging.getLogger(__name__)
-
-BLOB_RADIUS_M = 0.3
-"""How far each of two people standing in one blob is from its centroid (half the
-distance between two people side by side)."""
 
 COUNTERS = (
     "steps",
@@ -381,23 +378,11 @@ class Tracker:
         if updates is not None:
             self.sensors.learn(updates)
         own_rows, own_cols = rows, cols
-        rows, cols, blob = self._share_blobs(rows, cols, d2, gated, dets.xy, t)
+        rows, cols, blob = share_blobs(tb, self.identity, rows, cols, d2, gated, dets.xy, t)
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
-        r_used = r[rows, cols]
-        if self.params.shared_noise_factor > 1.0:
-            # a detection two confirmed tracks could both have produced may be both
-            # people in one blob: it pulls its track less, so neither is dragged onto
-            # the other's course
-            shared = blob | ((gated[:, cols] & tb.confirmed[:, None]).sum(axis=0) >= 2)
-            if shared.any():
-                r_used = r_used.copy()
-                r_used[shared] *= self.params.shared_noise_factor
-        if blob.any():
-            # one blob of two people: each person is up to a body radius from its
-            # centroid, so both tracks stay ready for the two detections when they part
-            in_blob = np.isin(cols, cols[blob])
-            r_used = r_used.copy()
-            r_used[in_blob, 0:2, 0:2] += BLOB_RADIUS_M**2 * np.eye(2)
+        r_used = shared_noise(
+            r[rows, cols], cols, blob, gated, tb.confirmed, self.params.shared_noise_factor
+        )
         tb.x[rows], tb.cov[rows] = self.ukf.update(
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used
         )
@@ -412,53 +397,6 @@ class Tracker:
         assigned[cols] = True
         self.sensors.observe_frame(dets.sensor_id, int((~assigned).sum()))
         return assigned, d2
-
-    def _share_blobs(
-        self,
-        rows: np.ndarray,
-        cols: np.ndarray,
-        d2: np.ndarray,
-        gated: np.ndarray,
-        xy: np.ndarray,
-        t: float,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Pairs plus the tracks that share a blob with another person's track.
-
-        People standing close together come out as one detection (the childcare
-        tracking paper, section 2.3.3: several children may share one detected area).
-        A confirmed track left without a detection whose nearest gated detection went to
-        a track the identity role knows to be *another person* is updated by that
-        detection too (weakly, see ``shared_noise_factor``), so neither identity is lost
-        while they stand together (for as long as the identity role allows: see
-        :meth:`~openptrack_py.tracking.base.IdentityModel.shares`). Without an identity
-        opinion nothing is shared, and nothing is shared by a track with a detection
-        nobody took within a blob's width (the blob has parted: that may be its person).
-        Returns rows, columns and which pairs are such shares.
-        """
-        tb = self.table
-        idle = np.ones(len(tb), dtype=bool)
-        idle[rows] = False
-        idle &= tb.confirmed & gated[:, cols].any(axis=1)
-        none = np.zeros(len(rows), dtype=bool)
-        if not idle.any():
-            return rows, cols, none
-        lonely = np.flatnonzero(idle)
-        left = np.setdiff1d(np.arange(len(xy)), cols)
-        if len(left):
-            gap = np.linalg.norm(tb.x[lonely, None, 0:2] - xy[None, left], axis=2)
-            lonely = lonely[(gap > 2 * BLOB_RADIUS_M).all(axis=1)]
-            if not len(lonely):
-                return rows, cols, none
-        near = np.argmin(
-            np.where(gated[np.ix_(lonely, cols)], d2[np.ix_(lonely, cols)], np.inf), 1
-        )
-        partner = rows[near]
-        two = self.identity.shares(tb, lonely, partner, t) & tb.confirmed[partner]
-        if not two.any():
-            return rows, cols, none
-        extra_rows, extra_cols = lonely[two], cols[near[two]]
-        flags = np.concatenate([none, np.ones(len(extra_rows), dtype=bool)])
-        return np.concatenate([rows, extra_rows]), np.concatenate([cols, extra_cols]), flags
 
     def _assign_by_stage(self, cost: np.ndarray, allowed: np.ndarray) -> list[tuple[int, int]]:
         """Confirmed tracks choose first; tentative tracks only get what is left.

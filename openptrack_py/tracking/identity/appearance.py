@@ -36,30 +36,19 @@ from scipy.optimize import linear_sum_assignment
 from openptrack_py.config.identity import IdentityConfig
 from openptrack_py.messages.track import Track
 from openptrack_py.tracking.identity.likelihood import (
+    ISOLATION_M,
     DistanceLikelihood,
     cosine_distance,
+    distance_samples,
     hellinger,
+    rowwise_distance,
 )
 from openptrack_py.tracking.identity.models import PooledIdentity, TrackModels
 from openptrack_py.tracking.identity.roster import Roster
 from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
 
-ISOLATION_M = 1.5
-"""A detection is certainly not the person of a track farther than this (a "different"
-sample)."""
 DISTINCT_OBSERVATIONS = 10
 """Clean signatures each of two tracks needs before they can be judged two people."""
-MAX_DIFFERENT_SAMPLES = 64
-"""Different-person distances learned per step at most."""
-
-
-def _rowwise_hellinger(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    bc = (np.sqrt(np.maximum(a, 0.0)) * np.sqrt(np.maximum(b, 0.0))).sum(axis=1)
-    return np.sqrt(np.clip(1.0 - bc, 0.0, 1.0))
-
-
-def _rowwise_cosine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.clip((1.0 - (a * b).sum(axis=1)) / 2.0, 0.0, 1.0)
 
 
 class AppearanceIdentity:
@@ -174,17 +163,23 @@ class AppearanceIdentity:
         if fit_c:
             use = clean & looks.has_signature[cols]
             ready = m.sig_n >= self.cfg.min_observations
-            self._learn_likelihood(
-                self.colour, m.sig, ready, mrows, looks.signature[cols], use & confirmed,
-                certain, far, table, _rowwise_hellinger, hellinger,
+            others = m.rows(table.ids)
+            self.colour.learn(
+                *distance_samples(
+                    m.sig, ready, mrows, looks.signature[cols], use & confirmed & certain,
+                    use & confirmed, far, others, table.confirmed, "hellinger",
+                )
             )  # fmt: skip
             m.learn_colour(mrows[use], looks.signature[cols[use]], self.cfg.model_rate)
         if fit_e:
             use = looks.embedding_weight[cols] > 0
             ready = m.emb_w > 0
-            self._learn_likelihood(
-                self.face, m.emb, ready, mrows, looks.embedding[cols], use & confirmed,
-                certain, far, table, _rowwise_cosine, cosine_distance,
+            others = m.rows(table.ids)
+            self.face.learn(
+                *distance_samples(
+                    m.emb, ready, mrows, looks.embedding[cols], use & confirmed & certain,
+                    use & confirmed, far, others, table.confirmed, "cosine",
+                )
             )  # fmt: skip
             m.learn_embedding(
                 mrows[use], looks.embedding[cols[use]], looks.embedding_weight[cols[use]],
@@ -243,12 +238,12 @@ class AppearanceIdentity:
             both = (
                 ok & (m.sig_n[a] >= DISTINCT_OBSERVATIONS) & (m.sig_n[b] >= DISTINCT_OBSERVATIONS)
             )
-            d = _rowwise_hellinger(m.sig[a[both]], m.sig[b[both]])
+            d = rowwise_distance("hellinger", m.sig[a[both]], m.sig[b[both]])
             llr[both] += self.cfg.appearance_weight * self.colour.llr(d)
             known |= both
         if self.face.ready and m.emb.shape[1]:
             both = ok & (m.emb_w[a] > 0) & (m.emb_w[b] > 0)
-            d = _rowwise_cosine(m.emb[a[both]], m.emb[b[both]])
+            d = rowwise_distance("cosine", m.emb[a[both]], m.emb[b[both]])
             llr[both] += self.cfg.embedding_weight * self.face.llr(d)
             known |= both
         return known & (llr <= -self.cfg.link_margin)
@@ -296,35 +291,6 @@ class AppearanceIdentity:
         far = gap > ISOLATION_M
         alone = (gap <= self.cfg.share_distance_m).sum(axis=1) <= 1
         return far, alone
-
-    def _learn_likelihood(
-        self,
-        model: DistanceLikelihood,
-        refs: np.ndarray,
-        ready: np.ndarray,
-        mrows: np.ndarray,
-        looks: np.ndarray,
-        use: np.ndarray,
-        certain: np.ndarray,
-        far: np.ndarray,
-        table: TrackTable,
-        rowwise,
-        pairwise,
-    ) -> None:
-        """Same-person and different-person distances from this step's updates."""
-        same_sel = use & certain & ready[mrows]
-        same = rowwise(refs[mrows[same_sel]], looks[same_sel])
-        others = self.models.rows(table.ids)
-        valid = (others >= 0) & table.confirmed
-        valid[valid] &= ready[others[valid]]
-        different = np.zeros(0)
-        sel = np.flatnonzero(use)
-        if len(sel) and valid.any():
-            cand = np.flatnonzero(valid)
-            d = pairwise(looks[sel], refs[others[cand]])
-            mask = far[sel][:, cand]
-            different = d[mask][:MAX_DIFFERENT_SAMPLES]
-        model.learn(same, different)
 
     def _look_llr(
         self, looks: Looks, cols: np.ndarray, has_sig: np.ndarray, sig: np.ndarray,

@@ -30,6 +30,11 @@ PRIOR = 2.0
 """Pseudo-count per bin of both histograms (equal: the ratio starts at 0)."""
 MIN_SAMPLES = 50.0
 """Samples each histogram needs before the ratio is used at all."""
+MAX_DIFFERENT_SAMPLES = 64
+"""Different-person distances learned per step at most."""
+ISOLATION_M = 1.5
+"""A detection is certainly not the person of a track farther than this (a "different"
+sample)."""
 
 
 class DistanceLikelihood:
@@ -115,3 +120,45 @@ def hellinger(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def cosine_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distances ``(n, m)`` in [0, 1] between rows of unit vectors: ``(1 - cos) / 2``."""
     return np.clip((1.0 - a @ b.T) / 2.0, 0.0, 1.0)
+
+
+def rowwise_distance(kind: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distances between rows ``a[k]`` and ``b[k]`` ("hellinger" or "cosine")."""
+    if kind == "hellinger":
+        bc = (np.sqrt(np.maximum(a, 0.0)) * np.sqrt(np.maximum(b, 0.0))).sum(axis=1)
+        return np.sqrt(np.clip(1.0 - bc, 0.0, 1.0))
+    return np.clip((1.0 - (a * b).sum(axis=1)) / 2.0, 0.0, 1.0)
+
+
+def distance_samples(
+    refs: np.ndarray,
+    ready: np.ndarray,
+    mrows: np.ndarray,
+    looks: np.ndarray,
+    same_ok: np.ndarray,
+    use: np.ndarray,
+    far: np.ndarray,
+    others: np.ndarray,
+    confirmed: np.ndarray,
+    kind: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Same-person and different-person distances from one step's updates.
+
+    ``refs`` are the tracks' models (``ready`` where settled), ``mrows`` each update's
+    model row and ``looks`` its detection's look. *Same*: the updates ``same_ok`` (motion
+    alone made them certain) against their own track's model. *Different*: the updates
+    ``use`` against the models of the confirmed tracks ``far`` from them (``others``:
+    the model row of every track of the table, ``-1`` for none).
+    """
+    same_sel = same_ok & ready[mrows]
+    same = rowwise_distance(kind, refs[mrows[same_sel]], looks[same_sel])
+    valid = (others >= 0) & confirmed
+    valid[valid] &= ready[others[valid]]
+    different = np.zeros(0)
+    sel = np.flatnonzero(use)
+    if len(sel) and valid.any():
+        cand = np.flatnonzero(valid)
+        pairwise = hellinger if kind == "hellinger" else cosine_distance
+        d = pairwise(looks[sel], refs[others[cand]])
+        different = d[far[sel][:, cand]][:MAX_DIFFERENT_SAMPLES]
+    return same, different

@@ -1,0 +1,93 @@
+"""People standing so close that they come out as one detection: a shared blob.
+
+The childcare tracking paper (section 2.3.3) lets several children share one detected
+area. Here a confirmed track left without a detection may follow the detection of a
+track the identity role knows to be another person standing beside it, so that neither
+identity is dropped or swapped while they stand together.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from openptrack_py.tracking.base import IdentityModel
+from openptrack_py.tracking.state import TrackTable
+
+BLOB_RADIUS_M = 0.3
+"""How far each of two people standing in one blob is from its centroid (half the
+distance between two people side by side)."""
+
+
+def share_blobs(
+    tb: TrackTable,
+    identity: IdentityModel,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    d2: np.ndarray,
+    gated: np.ndarray,
+    xy: np.ndarray,
+    t: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs plus the tracks that share a blob with another person's track.
+
+    People standing close together come out as one detection (the childcare
+    tracking paper, section 2.3.3: several children may share one detected area).
+    A confirmed track left without a detection whose nearest gated detection went to
+    a track the identity role knows to be *another person* is updated by that
+    detection too (weakly, see ``shared_noise_factor``), so neither identity is lost
+    while they stand together (for as long as the identity role allows: see
+    :meth:`~openptrack_py.tracking.base.IdentityModel.shares`). Without an identity
+    opinion nothing is shared, and nothing is shared by a track with a detection
+    nobody took within a blob's width (the blob has parted: that may be its person).
+    Returns rows, columns and which pairs are such shares.
+    """
+    idle = np.ones(len(tb), dtype=bool)
+    idle[rows] = False
+    idle &= tb.confirmed & gated[:, cols].any(axis=1)
+    none = np.zeros(len(rows), dtype=bool)
+    if not idle.any():
+        return rows, cols, none
+    lonely = np.flatnonzero(idle)
+    left = np.setdiff1d(np.arange(len(xy)), cols)
+    if len(left):
+        gap = np.linalg.norm(tb.x[lonely, None, 0:2] - xy[None, left], axis=2)
+        lonely = lonely[(gap > 2 * BLOB_RADIUS_M).all(axis=1)]
+        if not len(lonely):
+            return rows, cols, none
+    near = np.argmin(np.where(gated[np.ix_(lonely, cols)], d2[np.ix_(lonely, cols)], np.inf), 1)
+    partner = rows[near]
+    two = identity.shares(tb, lonely, partner, t) & tb.confirmed[partner]
+    if not two.any():
+        return rows, cols, none
+    extra_rows, extra_cols = lonely[two], cols[near[two]]
+    flags = np.concatenate([none, np.ones(len(extra_rows), dtype=bool)])
+    return np.concatenate([rows, extra_rows]), np.concatenate([cols, extra_cols]), flags
+
+
+def shared_noise(
+    r: np.ndarray,
+    cols: np.ndarray,
+    blob: np.ndarray,
+    gated: np.ndarray,
+    confirmed: np.ndarray,
+    factor: float,
+) -> np.ndarray:
+    """The noise ``r (n, dim, dim)`` of each pair's detection, widened where it is shared.
+
+    A detection two confirmed tracks could both have produced may be both people in one
+    blob: it pulls its track less (``factor``), so neither is dragged onto the other's
+    course. A detection explicitly shared (``blob``) also gets a body radius of extra
+    uncertainty for every track it updates, since each person is up to that far from the
+    blob's centroid: both tracks stay ready for the two detections when they part.
+    """
+    out = r
+    if factor > 1.0:
+        shared = blob | ((gated[:, cols] & confirmed[:, None]).sum(axis=0) >= 2)
+        if shared.any():
+            out = out.copy()
+            out[shared] *= factor
+    if blob.any():
+        in_blob = np.isin(cols, cols[blob])
+        out = out.copy()
+        out[in_blob, 0:2, 0:2] += BLOB_RADIUS_M**2 * np.eye(2)
+    return out
