@@ -33,7 +33,10 @@ class IdentityConfig(StrictModel):
     min_observations : int
         Clean observations a track's appearance model needs before it is used.
     model_rate : float
-        Weight of a new observation in a track's appearance model (exponential average).
+        Least weight of a new observation in a track's appearance model: the model is
+        the mean of its clean observations, forgetting slowly once it has ``1 /
+        model_rate`` of them (DeepSORT keeps a gallery of the last 100 appearance
+        features per track; 0.01 is that memory).
     clean_min_confidence : float
         Only detections at least this confident, whose image box overlaps no other
         detection's, teach a track's appearance (a half-hidden person's colours are
@@ -74,7 +77,7 @@ class IdentityConfig(StrictModel):
     embedding_weight: float = Field(1.0, ge=0.0, le=10.0)
     max_llr: float = Field(3.0, gt=0.0, le=20.0)
     min_observations: int = Field(3, ge=1, le=1000)
-    model_rate: float = Field(0.05, gt=0.0, le=1.0)
+    model_rate: float = Field(0.01, gt=0.0, le=1.0)
     clean_min_confidence: float = Field(0.5, ge=0.0, le=1.0)
     pool_s: float = Field(180.0, ge=0.0, le=86400.0)
     reid_window_s: float = Field(10.0, gt=0.0, le=3600.0)
