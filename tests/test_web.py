@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import base64
 import contextlib
+import dataclasses
 import http.client
 import json
 import os
@@ -715,7 +716,14 @@ def test_headless_chromium_views_the_secured_page_with_its_token(tmp_path: Path)
     def frames() -> None:
         seq = 0
         while not stop.is_set():
-            srv.broadcast(frame_message(_batch(seq, (2.0 + 0.01 * seq, 3.0))))
+            batch = _batch(seq, (2.0 + 0.01 * seq, 3.0), (5.0, 4.0), (6.0, 2.0))
+            named, back, plain = batch.tracks
+            tracks = (
+                dataclasses.replace(named, stable_id=1, identity="Ada"),  # registered
+                dataclasses.replace(back, stable_id=7),  # re-identified: an older identity
+                dataclasses.replace(plain, stable_id=3),
+            )
+            srv.broadcast(frame_message(dataclasses.replace(batch, tracks=tracks)))
             seq += 1
             time.sleep(0.05)
 
@@ -735,6 +743,12 @@ def test_headless_chromium_views_the_secured_page_with_its_token(tmp_path: Path)
             return bool(snap and snap["status"] == "live" and snap["state"].get("frames", 0) > 2)
 
         wait_for(drawing, 30, "the secured page drawing frames")
+        # names and stable identities are drawn next to the track ids
+        labels = {
+            t["id"]: t["label"]
+            for t in json.loads(browser.evaluate(SNAPSHOT_JS))["state"]["tracks"]
+        }
+        assert labels == {1: "Ada (1)", 2: "2 \u2192 7", 3: "3"}
     finally:
         browser.close()
         stop.set()
