@@ -404,3 +404,46 @@ def test_two_people_in_one_blob_keep_both_identities() -> None:
     assert len(before) == 2
     assert all(ids == set(before.values()) for ids in during[30:])  # both stay published
     assert after == before  # and each is on their own side when they part
+
+
+def _face(k: int, rng: np.random.Generator, noise: float = 0.1) -> tuple[float, ...]:
+    base = np.random.default_rng(100 + k).normal(size=16)
+    v = base / np.linalg.norm(base) + rng.normal(0, noise, 16)
+    return tuple((v / np.linalg.norm(v)).tolist())
+
+
+def test_identity_embeddings_alone_reidentify_people_who_dress_alike() -> None:
+    rng = np.random.default_rng(15)
+    tracker = identity_tracker()
+    uniform = look(5, rng)
+    t = T0
+    for k in range(300):
+        t = T0 + k * FRAME
+        dets = tuple(
+            replace(
+                person(1.0 + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, uniform),
+                face=_face(i, rng),
+                face_confidence=0.8,
+            )
+            for i in range(3)
+        )
+        out = tracker.step(batch(t, dets, k))
+    before = {round(tr.y): tr.stable_id for tr in out.tracks}
+    assert tracker.identity.face.ready
+    k0 = 1000
+    for j in range(int(20 / (5 * FRAME))):  # person 1 away for 20 s
+        dets = tuple(
+            replace(person(1.0, 2.0 + 2.5 * i, uniform), face=_face(i, rng), face_confidence=0.8)
+            for i in (0, 2)
+        )
+        out = tracker.step(batch(t + (j + 1) * 5 * FRAME, dets, k0 + j))
+    t = out.stamp
+    for j in range(120):
+        dets = tuple(
+            replace(person(1.0, 2.0 + 2.5 * i, uniform), face=_face(i, rng), face_confidence=0.8)
+            for i in (0, 2)
+        )
+        dets += (replace(person(6.0 + 0.01 * j, 6.0, uniform, u=700), face=_face(1, rng)),)
+        out = tracker.step(batch(t + (j + 1) * FRAME, dets, 5000 + j))
+    back = [tr for tr in out.tracks if tr.x > 5.0]
+    assert back and back[0].stable_id == before[4]
