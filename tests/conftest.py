@@ -149,3 +149,20 @@ def people_snapshot(
         top_hue=rows[:, 4].copy(),
         bottom_hue=rows[:, 5].copy(),
     )
+
+
+def demo_network_file(tmp_path: Path, hub: str, **sections: dict) -> Path:
+    """The demo network with ``hub``, free output ports and ``sections`` merged in."""
+    import yaml
+
+    data = yaml.safe_load((ROOT / "config" / "demo.yaml").read_text())
+    data["zenoh"]["hub"] = hub
+    for name, changes in sections.items():
+        data[name].update(changes)
+    for out in data.get("outputs", []):  # free ports, so parallel runs never collide
+        out["web"]["port"] = 0
+        for udp in out["udp"]:
+            udp["port"] = free_port()
+    path = tmp_path / "net.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path

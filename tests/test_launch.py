@@ -13,11 +13,10 @@ from pathlib import Path
 
 import orjson
 import pytest
-import yaml
 
 from openptrack_py.config import load_network
 from openptrack_py.launch import NodeSpec, Supervisor, host_matches, plan_nodes, this_host
-from tests.conftest import ROOT, free_port, python_env, wait_for
+from tests.conftest import ROOT, demo_network_file, free_port, python_env, wait_for
 
 DEMO = ROOT / "config" / "demo.yaml"
 
@@ -131,19 +130,6 @@ def test_stop_escalates_to_kill_for_a_node_that_ignores_sigint() -> None:
 # ---------------------------------------------------------------- whole network
 
 
-def _network(tmp_path: Path, hub: str, **sim: object) -> Path:
-    data = yaml.safe_load(DEMO.read_text())
-    data["zenoh"]["hub"] = hub
-    data["sim"].update(sim)
-    for out in data.get("outputs", []):  # free ports, so parallel runs never collide
-        out["web"]["port"] = 0
-        for udp in out["udp"]:
-            udp["port"] = free_port()
-    path = tmp_path / "net.yaml"
-    path.write_text(yaml.safe_dump(data))
-    return path
-
-
 def _cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "openptrack_py.cli", *args],
@@ -161,7 +147,7 @@ def test_launch_runs_the_network_and_stops_cleanly(
     tmp_path: Path, spawn: Callable[..., subprocess.Popen[str]], stop_signal: signal.Signals
 ) -> None:
     hub = f"tcp/127.0.0.1:{free_port()}"
-    net = _network(tmp_path, hub)
+    net = demo_network_file(tmp_path, hub)
     launcher = spawn("-m", "openptrack_py.cli", "launch", str(net), "--status-interval", "1")
     log = Path(launcher.log_path)  # type: ignore[attr-defined]
     wait_for(lambda: "playing scenario" in log.read_text(), 30, "the sim node to start")
@@ -195,7 +181,7 @@ def test_launch_runs_the_network_and_stops_cleanly(
 
 @pytest.mark.zenoh
 def test_launch_duration_stops_by_itself(tmp_path: Path) -> None:
-    net = _network(tmp_path, f"tcp/127.0.0.1:{free_port()}")
+    net = demo_network_file(tmp_path, f"tcp/127.0.0.1:{free_port()}")
     result = _cli("launch", str(net), "--duration", "3", "--status-interval", "0", timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "[launch] duration of 3 s reached" in result.stdout

@@ -15,25 +15,9 @@ from pathlib import Path
 
 import orjson
 import pytest
-import yaml
 
 from openptrack_py.tracking.identity import load_roster
-from tests.conftest import ROOT, free_port, python_env, wait_for
-
-DEMO = ROOT / "config" / "demo.yaml"
-
-
-def _network(tmp_path: Path) -> Path:
-    data = yaml.safe_load(DEMO.read_text())
-    data["zenoh"]["hub"] = f"tcp/127.0.0.1:{free_port()}"
-    data["tracker"]["identity"]["roster_file"] = str(tmp_path / "roster.yaml")
-    for out in data.get("outputs", []):
-        out["web"]["port"] = 0
-        for udp in out["udp"]:
-            udp["port"] = free_port()
-    path = tmp_path / "net.yaml"
-    path.write_text(yaml.safe_dump(data))
-    return path
+from tests.conftest import ROOT, demo_network_file, free_port, python_env, wait_for
 
 
 def _cli(net: Path, *args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
@@ -66,8 +50,9 @@ def _oldest_track(net: Path) -> int | None:
 def test_roster_commands_against_a_running_demo(
     tmp_path: Path, spawn: Callable[..., subprocess.Popen[str]]
 ) -> None:
-    net = _network(tmp_path)
     roster_file = tmp_path / "roster.yaml"
+    identity = {"identity": {"enabled": True, "roster_file": str(roster_file)}}
+    net = demo_network_file(tmp_path, f"tcp/127.0.0.1:{free_port()}", tracker=identity)
     launcher = spawn("-m", "openptrack_py.cli", "launch", str(net), "--status-interval", "0")
     log = Path(launcher.log_path)  # type: ignore[attr-defined]
     wait_for(lambda: "playing scenario" in log.read_text(), 30, "the sim node to start")
