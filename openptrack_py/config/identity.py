@@ -52,14 +52,24 @@ class IdentityConfig(StrictModel):
         See ``reid_max_speed_mps``.
     evidence_per_observation : float
         Share of an observation's log-likelihood ratio that counts as independent
-        evidence (successive frames of one person are strongly correlated).
+        evidence for a name (successive frames of one person are strongly correlated).
     link_evidence : float
-        Accumulated log-likelihood ratio a track needs to take a pooled identity or a
-        registered name; it must also beat the second best by ``link_margin``.
+        Accumulated log-likelihood ratio a track needs for a registered name; it must
+        also beat the second best by ``link_margin``. Two tracks whose models differ by
+        ``link_margin`` are two people.
     link_margin : float
         See ``link_evidence``.
+    reid_min_s : float
+        A young track is observed this long before it may take a pooled identity.
+    reid_mean_llr : float
+        Least mean log-likelihood ratio of its observations against the pooled identity
+        (a mean, not a sum: frames are not independent, and a sum would soon pass any
+        threshold for a stranger who merely dresses alike).
+    reid_margin : float
+        Least lead of that mean over every rival (another pooled identity, another
+        young track).
     unlink_evidence : float
-        A link is undone when its evidence falls to this (later observations contradict
+        A link is undone when the mean falls to this (later observations contradict
         it), and the identity returns to the pool.
     share_max_s : float
         Two tracks known to be two people may share one detection (people standing so
@@ -86,7 +96,10 @@ class IdentityConfig(StrictModel):
     evidence_per_observation: float = Field(0.2, gt=0.0, le=1.0)
     link_evidence: float = Field(3.0, gt=0.0, le=100.0)
     link_margin: float = Field(2.0, ge=0.0, le=100.0)
-    unlink_evidence: float = Field(-1.0, le=0.0, ge=-100.0)
+    reid_min_s: float = Field(2.0, ge=0.0, le=600.0)
+    reid_mean_llr: float = Field(1.0, gt=0.0, le=20.0)
+    reid_margin: float = Field(0.5, ge=0.0, le=20.0)
+    unlink_evidence: float = Field(0.0, le=1.0, ge=-20.0)
     share_max_s: float = Field(60.0, ge=0.0, le=3600.0)
     share_distance_m: float = Field(0.6, ge=0.0, le=5.0)
     roster_file: Path | None = None

@@ -224,12 +224,19 @@ class IdentityModel(Protocol):
         """
 
     def shares(
-        self, table: TrackTable, lonely: np.ndarray, partner: np.ndarray, t: float
+        self,
+        table: TrackTable,
+        lonely: np.ndarray,
+        partner: np.ndarray,
+        dets: DetectionArrays,
+        cols: np.ndarray,
+        t: float,
     ) -> np.ndarray:
         """Mask of the tracks ``lonely`` that may take their ``partner``'s detection at ``t``.
 
-        They are known to be two people standing so close that they came out as one
-        detection (and ``lonely`` was seen on its own recently enough).
+        ``cols``: that detection of ``dets``, per pair. They are known to be two people
+        standing so close that they came out as one detection (and ``lonely`` was seen on
+        its own recently enough, and the detection does not look like the partner alone).
         """
 
     def annotate(self, tracks: list[Track]) -> list[Track]:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from openptrack_py.tracking.base import IdentityModel
-from openptrack_py.tracking.state import TrackTable
+from openptrack_py.tracking.state import DetectionArrays, TrackTable
 
 BLOB_RADIUS_M = 0.3
 """How far each of two people standing in one blob is from its centroid (half the
@@ -21,11 +21,11 @@ distance between two people side by side)."""
 def share_blobs(
     tb: TrackTable,
     identity: IdentityModel,
+    dets: DetectionArrays,
     rows: np.ndarray,
     cols: np.ndarray,
     d2: np.ndarray,
     gated: np.ndarray,
-    xy: np.ndarray,
     t: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pairs plus the tracks that share a blob with another person's track.
@@ -48,15 +48,15 @@ def share_blobs(
     if not idle.any():
         return rows, cols, none
     lonely = np.flatnonzero(idle)
-    left = np.setdiff1d(np.arange(len(xy)), cols)
+    left = np.setdiff1d(np.arange(len(dets)), cols)
     if len(left):
-        gap = np.linalg.norm(tb.x[lonely, None, 0:2] - xy[None, left], axis=2)
+        gap = np.linalg.norm(tb.x[lonely, None, 0:2] - dets.xy[None, left], axis=2)
         lonely = lonely[(gap > 2 * BLOB_RADIUS_M).all(axis=1)]
         if not len(lonely):
             return rows, cols, none
     near = np.argmin(np.where(gated[np.ix_(lonely, cols)], d2[np.ix_(lonely, cols)], np.inf), 1)
     partner = rows[near]
-    two = identity.shares(tb, lonely, partner, t) & tb.confirmed[partner]
+    two = identity.shares(tb, lonely, partner, dets, cols[near], t) & tb.confirmed[partner]
     if not two.any():
         return rows, cols, none
     extra_rows, extra_cols = lonely[two], cols[near[two]]

@@ -378,7 +378,7 @@ class Tracker:
         if updates is not None:
             self.sensors.learn(updates)
         own_rows, own_cols = rows, cols
-        rows, cols, blob = share_blobs(tb, self.identity, rows, cols, d2, gated, dets.xy, t)
+        rows, cols, blob = share_blobs(tb, self.identity, dets, rows, cols, d2, gated, t)
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
         r_used = shared_noise(
             r[rows, cols], cols, blob, gated, tb.confirmed, self.params.shared_noise_factor

@@ -184,7 +184,13 @@ class ForgetfulIdentity:
         return np.zeros(len(rows_a), dtype=bool)
 
     def shares(
-        self, table: TrackTable, lonely: np.ndarray, partner: np.ndarray, t: float
+        self,
+        table: TrackTable,
+        lonely: np.ndarray,
+        partner: np.ndarray,
+        dets: DetectionArrays,
+        cols: np.ndarray,
+        t: float,
     ) -> np.ndarray:
         """No track shares another's detection."""
         return np.zeros(len(lonely), dtype=bool)

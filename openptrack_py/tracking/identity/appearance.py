@@ -13,10 +13,11 @@
 * **Re-identification** (OpenPTrack v2's pool of lost faces, norfair's dead tracks kept
   for re-identification): a confirmed track that ends leaves its identity in a pool for
   ``pool_s``; a young track gathers evidence for each pooled identity it could be
-  (one it could have walked to since), as a sequential test, and takes one back once the
-  evidence passes ``link_evidence`` and beats every rival by ``link_margin``, one-to-one
-  (Hungarian). Evidence keeps coming in during the track's first ``reid_window_s``; a
-  link it contradicts is undone and the identity goes back to the pool.
+  (one it could have walked to since), and takes one back once, after ``reid_min_s``,
+  its mean log-likelihood ratio passes ``reid_mean_llr`` and beats every rival by
+  ``reid_margin``, one-to-one (Hungarian). Evidence keeps coming in during the track's
+  first ``reid_window_s``; a link it contradicts is undone and the identity goes back to
+  the pool.
 * **Names** (the paper's registered children, v2's named faces): evidence for each
   registered person accumulates the same way; names go to tracks one-to-one by a
   Hungarian assignment over the evidence, with hysteresis, so no name is ever on two
@@ -45,8 +46,11 @@ from openptrack_py.tracking.identity.likelihood import (
 )
 from openptrack_py.tracking.identity.models import PooledIdentity, TrackModels
 from openptrack_py.tracking.identity.roster import Roster
+from openptrack_py.tracking.neighbours import close_pairs
 from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
 
+MIN_REID_OBSERVATIONS = 10
+"""Observations of a young track against a pooled identity before their mean counts."""
 DISTINCT_OBSERVATIONS = 10
 """Clean signatures each of two tracks needs before they can be judged two people."""
 
@@ -71,8 +75,9 @@ class AppearanceIdentity:
         self.models = TrackModels()
         self.pool: tuple[PooledIdentity, ...] = ()
         self.links: dict[int, PooledIdentity] = {}
-        self.reid_ev: dict[int, dict[int, float]] = {}
+        self.reid_ev: dict[int, dict[int, tuple[float, int]]] = {}
         self.named: dict[int, int] = {}
+        self.apart: set[tuple[int, int]] = set()
         self.roster = Roster()
         self.counters = {"reidentified": 0, "unlinked": 0}
         self.set_roster(roster or Roster())
@@ -153,6 +158,7 @@ class AppearanceIdentity:
             certain = np.zeros(len(rows), dtype=bool)
         rows, cols, mrows, certain = rows[ok], cols[ok], mrows[ok], certain[ok]
         m.seen[mrows] = t
+        self._seen_apart(table, rows)
         fit_c, fit_e = m.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
         far, alone = self._surroundings(table, dets.xy[cols])
         # a detection with another person within a body width may be both of them in
@@ -221,17 +227,35 @@ class AppearanceIdentity:
                 pooled.append(link)  # a duplicate's borrowed identity is free again
         self.pool = tuple(pooled)
         m.drop(mrows[mrows >= 0])
+        gone = set(ids.tolist())
+        self.apart = {p for p in self.apart if p[0] not in gone and p[1] not in gone}
+
+    def _seen_apart(self, table: TrackTable, rows: np.ndarray) -> None:
+        """Tracks ``rows`` were detected in one sensor frame: near pairs are two people."""
+        if len(rows) < 2:
+            return
+        ii, jj = close_pairs(table.x[rows, 0:2], ISOLATION_M)
+        ids = table.ids[rows]
+        for a, b in zip(ids[ii].tolist(), ids[jj].tolist(), strict=True):
+            self.apart.add((a, b) if a < b else (b, a))
 
     def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
-        """Pairs whose looks say two people (log-likelihood ratio below ``-link_margin``).
+        """Pairs known to be two people: seen apart, and their looks say two people.
 
-        Both models must be settled (``DISTINCT_OBSERVATIONS`` clean signatures, or an
-        embedding each). Two tracks of one person (a duplicate) look alike and are
-        never distinct; where everyone dresses alike nobody is.
+        The pair must have been detected as two people in one sensor frame while both
+        tracks lived (two tracks of one person at a camera boundary never are), and its
+        looks must disagree (log-likelihood ratio below ``-link_margin``, both models
+        settled: ``DISTINCT_OBSERVATIONS`` clean signatures, or an embedding each).
+        Where everyone dresses alike nobody is distinct.
         """
         m = self.models
         a, b = m.rows(table.ids[rows_a]), m.rows(table.ids[rows_b])
-        ok = (a >= 0) & (b >= 0)
+        ida, idb = table.ids[rows_a].tolist(), table.ids[rows_b].tolist()
+        seen = np.array(
+            [((x, y) if x < y else (y, x)) in self.apart for x, y in zip(ida, idb, strict=True)],
+            dtype=bool,
+        )
+        ok = (a >= 0) & (b >= 0) & seen
         llr = np.zeros(len(a))
         known = np.zeros(len(a), dtype=bool)
         if self.colour.ready and m.sig.shape[1]:
@@ -249,15 +273,41 @@ class AppearanceIdentity:
         return known & (llr <= -self.cfg.link_margin)
 
     def shares(
-        self, table: TrackTable, lonely: np.ndarray, partner: np.ndarray, t: float
+        self,
+        table: TrackTable,
+        lonely: np.ndarray,
+        partner: np.ndarray,
+        dets: DetectionArrays,
+        cols: np.ndarray,
+        t: float,
     ) -> np.ndarray:
-        """Known two people, side by side, ``lonely`` seen alone within ``share_max_s``."""
-        rows = self.models.rows(table.ids[lonely])
-        recent = np.zeros(len(rows), dtype=bool)
-        recent[rows >= 0] = t - self.models.seen[rows[rows >= 0]] <= self.cfg.share_max_s
+        """Which ``lonely`` tracks may follow their ``partner``'s detection ``cols``.
+
+        Known two people side by side, ``lonely`` seen alone within ``share_max_s``, and
+        the detection not clearly the partner alone. A blob of two people mixes their
+        looks; a detection that looks like the partner and unlike the lonely track's
+        person (by more than twice ``link_margin``) is the partner alone: the lonely one
+        has left, and following it would make a ghost.
+        """
+        m = self.models
+        rows = m.rows(table.ids[lonely])
+        ok = np.zeros(len(rows), dtype=bool)
+        ok[rows >= 0] = t - m.seen[rows[rows >= 0]] <= self.cfg.share_max_s
         gap = np.linalg.norm(table.x[lonely, 0:2] - table.x[partner, 0:2], axis=1)
-        recent &= gap <= self.cfg.share_distance_m
-        return recent & self.distinct(table, lonely, partner)
+        ok &= gap <= self.cfg.share_distance_m
+        ok &= self.distinct(table, lonely, partner)
+        if ok.any() and dets.looks is not None:
+            who = m.rows(table.ids[np.concatenate([lonely, partner])])
+            looks = dets.looks
+            refs = [
+                self._look_llr(
+                    looks, cols, looks.has_signature[cols], m.sig[r], m.sig_n[r] >= 1,
+                    m.emb[r], m.emb_w[r] > 0,
+                ).diagonal()
+                for r in (who[: len(lonely)], who[len(lonely) :])
+            ]  # fmt: skip
+            ok &= refs[1] - refs[0] <= 2.0 * self.cfg.link_margin
+        return ok
 
     def annotate(self, tracks: list[Track]) -> list[Track]:
         """Each track with its ``stable_id`` and, when named, ``identity``."""
@@ -356,7 +406,8 @@ class AppearanceIdentity:
                 entries, llr[k].tolist(), (gap[k] <= reach).tolist(), strict=True
             ):
                 if ok:
-                    ev[e.stable] = ev.get(e.stable, 0.0) + rho * value
+                    total, n = ev.get(e.stable, (0.0, 0))
+                    ev[e.stable] = (total + value, n + 1)
 
     # -------------------------------------------------------------- decisions
 
@@ -372,7 +423,7 @@ class AppearanceIdentity:
             if t - m.born[row] > cfg.reid_window_s:
                 del self.links[tid]  # settled
                 self.reid_ev.pop(tid, None)
-            elif self.reid_ev.get(tid, {}).get(entry.stable, 0.0) <= cfg.unlink_evidence:
+            elif _mean(self.reid_ev.get(tid, {}).get(entry.stable)) <= cfg.unlink_evidence:
                 del self.links[tid]
                 m.stable[row], m.own[row] = tid, True
                 self.pool += (entry,)
@@ -381,35 +432,47 @@ class AppearanceIdentity:
             row = m.rows(np.array([tid]))[0]
             if row < 0 or t - m.born[row] > cfg.reid_window_s:
                 del self.reid_ev[tid]
-        self._link(table)
+        self._link(table, t)
         self._name(table)
 
-    def _link(self, table: TrackTable) -> None:
-        """Young confirmed tracks take back the pooled identities they clearly are."""
+    def _link(self, table: TrackTable, t: float) -> None:
+        """Young confirmed tracks take back the pooled identities they clearly are.
+
+        The test is on the *mean* log-likelihood ratio of a track's observations against
+        each pooled identity (successive frames are far from independent: their sum
+        would soon pass any threshold for a stranger who merely dresses alike), once
+        the track has been observed for ``reid_min_s``.
+        """
         cfg, m = self.cfg, self.models
         if not self.pool or not self.reid_ev:
             return
         confirmed = set(table.ids[table.confirmed].tolist())
-        cands = [tid for tid in self.reid_ev if tid not in self.links and tid in confirmed]
+        rows = m.rows(np.array(list(self.reid_ev), dtype=np.int64))
+        old_enough = {
+            tid for tid, r in zip(self.reid_ev, rows.tolist(), strict=True)
+            if r >= 0 and t - m.born[r] >= cfg.reid_min_s
+        }  # fmt: skip
+        cands = [
+            tid for tid in self.reid_ev
+            if tid not in self.links and tid in confirmed and tid in old_enough
+        ]  # fmt: skip
         if not cands:
             return
-        ev = np.array([[self.reid_ev[c].get(e.stable, -np.inf) for e in self.pool] for c in cands])
+        ev = np.array([[_mean(self.reid_ev[c].get(e.stable)) for e in self.pool] for c in cands])
         ev = np.maximum(ev, -1e3)
         top_row, top_col = ev.max(axis=1, keepdims=True), ev.max(axis=0, keepdims=True)
-        second_row = (
-            np.sort(ev, axis=1)[:, -2:-1] if ev.shape[1] > 1 else np.full_like(top_row, -1e3)
-        )
-        second_col = (
-            np.sort(ev, axis=0)[-2:-1, :] if ev.shape[0] > 1 else np.full_like(top_col, -1e3)
-        )
-        # each pair's strongest rival: another identity for this track (or "a new
-        # person", evidence 0), and another track for this identity
-        rival_row = np.maximum(np.where(ev >= top_row, second_row, top_row), 0.0)
+        floor_row, floor_col = np.full_like(top_row, -1e3), np.full_like(top_col, -1e3)
+        second_row = np.sort(ev, axis=1)[:, -2:-1] if ev.shape[1] > 1 else floor_row
+        second_col = np.sort(ev, axis=0)[-2:-1, :] if ev.shape[0] > 1 else floor_col
+        # each pair's strongest rival: another identity for this track, and another
+        # track for this identity (two pooled identities that look alike block each
+        # other: better no link than a stranger's)
+        rival_row = np.where(ev >= top_row, second_row, top_row)
         rival_col = np.where(ev >= top_col, second_col, top_col)
         qualifies = (
-            (ev >= cfg.link_evidence)
-            & (ev - rival_row >= cfg.link_margin)
-            & (ev - rival_col >= cfg.link_margin)
+            (ev >= cfg.reid_mean_llr)
+            & (ev - rival_row >= cfg.reid_margin)
+            & (ev - rival_col >= cfg.reid_margin)
         )
         if not qualifies.any():
             return
@@ -458,12 +521,13 @@ class AppearanceIdentity:
         return (
             self.models.copy(), self.pool, dict(self.links),
             {k: dict(v) for k, v in self.reid_ev.items()}, dict(self.named),
-            self.colour.state(), self.face.state(),
+            self.colour.state(), self.face.state(), frozenset(self.apart),
         )  # fmt: skip
 
     def restore(self, state: tuple) -> None:
         """Return to a :meth:`snapshot`."""
-        models, pool, links, reid_ev, named, colour, face = state
+        models, pool, links, reid_ev, named, colour, face, apart = state
+        self.apart = set(apart)
         self.models = models.copy()
         self.pool, self.links, self.named = pool, dict(links), dict(named)
         self.reid_ev = {k: dict(v) for k, v in reid_ev.items()}
@@ -480,3 +544,12 @@ def _remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:
     if old.any() and len(values):
         out[old] = values[mapping[old]]
     return out
+
+
+def _mean(evidence: tuple[float, int] | None) -> float:
+    """Mean log-likelihood ratio of ``(sum, count)`` evidence (``-inf`` without any)."""
+    if not evidence:
+        return -np.inf
+    if evidence[1] < MIN_REID_OBSERVATIONS:
+        return 0.0
+    return evidence[0] / evidence[1]
