@@ -25,6 +25,10 @@
 
 All state is per track id, in arrays (:class:`~.models.TrackModels`), and is
 snapshotted for the tracker's late-batch replay and its checkpoint.
+
+This module is long because the role's three uses of one evidence (association,
+re-identification, names) share its models and likelihoods; the pool's decisions are
+the next thing to move into a module of their own.
 """
 
 from __future__ import annotations
@@ -220,7 +224,7 @@ class AppearanceIdentity:
                         stable=int(m.stable[mr]), sig=m.sig[mr].copy(), sig_n=float(m.sig_n[mr]),
                         emb=m.emb[mr].copy(), emb_w=float(m.emb_w[mr]),
                         xy=table.recent_xy[row].copy(), lost_at=float(table.last_seen[row]),
-                        name_ev=m.name_ev[mr].copy(),
+                        name_ev=m.name_ev[mr].copy(), impostor=self._impostor(mr),
                     )
                 )  # fmt: skip
             elif link is not None:
@@ -474,6 +478,8 @@ class AppearanceIdentity:
             & (ev - rival_row >= cfg.reid_margin)
             & (ev - rival_col >= cfg.reid_margin)
         )
+        if qualifies.any():
+            qualifies &= self._beats_impostors(cands)
         if not qualifies.any():
             return
         rows, cols = linear_sum_assignment(np.where(qualifies, -ev, 1e6))
@@ -489,6 +495,57 @@ class AppearanceIdentity:
             taken.add(c)
             self.counters["reidentified"] += 1
         self.pool = tuple(e for k, e in enumerate(self.pool) if k not in taken)
+
+    def _model_llr(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Log-likelihood ratio ``(len(a), len(b))`` of model rows ``a`` against ``b``."""
+        m, cfg = self.models, self.cfg
+        out = np.zeros((len(a), len(b)))
+        if self.colour.ready and m.sig.shape[1]:
+            ok = m.sig_n >= cfg.min_observations
+            llr = self.colour.llr(hellinger(m.sig[a], m.sig[b]))
+            out += cfg.appearance_weight * llr * (ok[a][:, None] & ok[b][None])
+        if self.face.ready and m.emb.shape[1]:
+            ok = m.emb_w > 0
+            llr = self.face.llr(cosine_distance(m.emb[a], m.emb[b]))
+            out += cfg.embedding_weight * llr * (ok[a][:, None] & ok[b][None])
+        return out
+
+    def _beats_impostors(self, cands: list[int]) -> np.ndarray:
+        """Whether each candidate looks more like each pooled identity than others did.
+
+        ``(C, P)``: the candidate's model against the pooled one beats, by
+        ``reid_margin``, the most alike anyone known to be someone else ever looked.
+        """
+        m = self.models
+        rows = m.rows(np.array(cands, dtype=np.int64))
+        pool = self.pool
+        sig = np.array([e.sig for e in pool])
+        emb = np.array([e.emb for e in pool])
+        out = np.zeros((len(cands), len(pool)))
+        if self.colour.ready and m.sig.shape[1] == sig.shape[1]:
+            ok = np.array([e.sig_n >= self.cfg.min_observations for e in pool])
+            llr = self.colour.llr(hellinger(m.sig[rows], sig))
+            out += self.cfg.appearance_weight * llr * ok[None]
+        if self.face.ready and m.emb.shape[1] == emb.shape[1]:
+            ok = np.array([e.emb_w > 0 for e in pool])
+            w = (m.emb_w[rows] > 0)[:, None]
+            llr = self.face.llr(cosine_distance(m.emb[rows], emb))
+            out += self.cfg.embedding_weight * llr * (ok[None] & w)
+        impostor = np.array([e.impostor for e in pool])
+        return out >= impostor[None] + self.cfg.reid_margin
+
+    def _impostor(self, row: int) -> float:
+        """How alike the people alive with track ``row`` look to it (see PooledIdentity).
+
+        Score normalisation against an impostor cohort, as speaker and face verification
+        do: a pooled identity is only taken by a look that beats every look known to be
+        someone else's.
+        """
+        m = self.models
+        others = np.setdiff1d(np.flatnonzero(m.sig_n >= self.cfg.min_observations), [row])
+        if not len(others):
+            return -np.inf
+        return float(self._model_llr(np.array([row]), others).max())
 
     def _name(self, table: TrackTable) -> None:
         """Names to confirmed tracks one-to-one, by evidence, with hysteresis."""

@@ -151,6 +151,9 @@ class PooledIdentity:
         When.
     name_ev : ndarray
         Its evidence for each registered name.
+    impostor : float
+        The highest model-to-model log-likelihood ratio between this person and anyone
+        seen alive with them (certainly someone else): how alike a stranger can look.
     """
 
     stable: int
@@ -161,3 +164,4 @@ class PooledIdentity:
     xy: np.ndarray
     lost_at: float
     name_ev: np.ndarray
+    impostor: float = -np.inf
