@@ -138,18 +138,28 @@ def colour_signatures(
         ``(count, bins + 3)`` uint8 signatures, each summing to about 255 (zero when the
         detection has no samples).
     """
+    return normalise_signatures(_bin_counts(rgb, labels, count, bins, min_saturation, min_value))
+
+
+def _bin_counts(
+    rgb: np.ndarray,
+    labels: np.ndarray,
+    count: int,
+    bins: int,
+    min_saturation: float,
+    min_value: float,
+) -> np.ndarray:
+    """``(count, bins + 3)`` sample counts per detection and signature bin."""
     width = signature_length(bins)
-    out = np.zeros((count, width), dtype=np.uint8)
     keep = labels >= 0
     if count == 0 or not keep.any():
-        return out
+        return np.zeros((count, width), dtype=np.int64)
     hsv = rgb_to_hsv(rgb[keep])
     which = signature_bins(
         hsv[:, 0], hsv[:, 1], hsv[:, 2],
         bins=bins, min_saturation=min_saturation, min_value=min_value,
     )  # fmt: skip
-    hist = np.bincount(labels[keep] * width + which, minlength=count * width)
-    return normalise_signatures(hist.reshape(count, width))
+    return np.bincount(labels[keep] * width + which, minlength=count * width).reshape(count, width)
 
 
 def normalise_signatures(hist: np.ndarray) -> np.ndarray:
@@ -180,20 +190,8 @@ def hue_histograms(
     ndarray
         ``(count, bins)`` uint8 histograms, each summing to about 255 (zero when none).
     """
-    out = np.zeros((count, bins), dtype=np.uint8)
-    keep = labels >= 0
-    if count == 0 or not keep.any():
-        return out
-    hsv = rgb_to_hsv(rgb[keep])
-    which = signature_bins(
-        hsv[:, 0], hsv[:, 1], hsv[:, 2],
-        bins=bins, min_saturation=min_saturation, min_value=min_value,
-    )  # fmt: skip
-    hue = which < bins
-    if not hue.any():
-        return out
-    hist = np.bincount(labels[keep][hue] * bins + which[hue], minlength=count * bins)
-    return normalise_signatures(hist.reshape(count, bins))
+    counts = _bin_counts(rgb, labels, count, bins, min_saturation, min_value)
+    return normalise_signatures(counts[:, :bins])
 
 
 def hue_correlation(a: np.ndarray, b: np.ndarray) -> float:

@@ -391,8 +391,10 @@ class Tracker:
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
         self.merger.observe(tb, own_rows, t)
-        # pairs motion alone made certain: each the only one in the other's gate
-        certain = (gated[own_rows].sum(axis=1) == 1) & (gated[:, own_cols].sum(axis=0) == 1)
+        certain = None
+        if self.identity.needs_looks:
+            # pairs motion alone made certain: each the only one in the other's gate
+            certain = (gated[own_rows].sum(axis=1) == 1) & (gated[:, own_cols].sum(axis=0) == 1)
         self.identity.observe(tb, own_rows, own_cols, dets, t, certain)
         assigned[cols] = True
         self.sensors.observe_frame(dets.sensor_id, int((~assigned).sum()))

@@ -14,7 +14,13 @@ import numpy as np
 import pytest
 
 from openptrack_py.messages.track import Track
-from openptrack_py.tracking import DetectionArrays, Tracker, TrackerParams, TrackTable
+from openptrack_py.tracking import (
+    DetectionArrays,
+    NullIdentity,
+    Tracker,
+    TrackerParams,
+    TrackTable,
+)
 
 
 class StillMotion:
@@ -143,7 +149,7 @@ class NeverMerge:
 
 
 @dataclass
-class ForgetfulIdentity:
+class ForgetfulIdentity(NullIdentity):
     """An identity role that counts each track's observations and names it by them.
 
     It keeps that state to itself (no ``snapshot``/``restore``): a late-batch replay
@@ -151,10 +157,6 @@ class ForgetfulIdentity:
     """
 
     counts: dict[int, int] = field(default_factory=dict)
-    needs_looks = False
-
-    def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
-        return None
 
     def observe(
         self,
@@ -179,21 +181,6 @@ class ForgetfulIdentity:
     ) -> None:
         for ident in table.ids[rows].tolist():
             self.counts.pop(ident, None)
-
-    def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
-        return np.zeros(len(rows_a), dtype=bool)
-
-    def shares(
-        self,
-        table: TrackTable,
-        lonely: np.ndarray,
-        partner: np.ndarray,
-        dets: DetectionArrays,
-        cols: np.ndarray,
-        t: float,
-    ) -> np.ndarray:
-        """No track shares another's detection."""
-        return np.zeros(len(lonely), dtype=bool)
 
     def annotate(self, tracks: list[Track]) -> list[Track]:
         return [

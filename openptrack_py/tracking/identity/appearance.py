@@ -33,7 +33,7 @@ the next thing to move into a module of their own.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -57,6 +57,20 @@ MIN_REID_OBSERVATIONS = 10
 """Observations of a young track against a pooled identity before their mean counts."""
 DISTINCT_OBSERVATIONS = 10
 """Clean signatures each of two tracks needs before they can be judged two people."""
+
+
+@dataclass(frozen=True)
+class _Side:
+    """Looks compared on one side of a log-likelihood ratio: colours and embeddings.
+
+    ``sig_ok`` marks the colours that count; ``emb_w`` weighs each embedding (a
+    detection's confidence, 1 for a model that has one, 0 for none).
+    """
+
+    sig: np.ndarray
+    sig_ok: np.ndarray
+    emb: np.ndarray
+    emb_w: np.ndarray
 
 
 class AppearanceIdentity:
@@ -116,22 +130,13 @@ class AppearanceIdentity:
         looks = dets.looks
         if looks is None or not len(table) or not len(dets):
             return None
-        m = self.models
-        rows = m.rows(table.ids)
-        fit_c, fit_e = m.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
+        self.models.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
+        rows = self.models.rows(table.ids)
         out = np.zeros((len(table), len(dets)))
-        if fit_c and self.colour.ready and self.cfg.appearance_weight > 0:
-            ok = np.flatnonzero(rows >= 0)
-            ok = ok[m.sig_n[rows[ok]] >= self.cfg.min_observations]
-            if len(ok) and looks.has_signature.any():
-                llr = self.colour.llr(hellinger(m.sig[rows[ok]], looks.signature))
-                out[ok] -= self.cfg.appearance_weight * llr * looks.has_signature[None, :]
-        if fit_e and self.face.ready and self.cfg.embedding_weight > 0:
-            ok = np.flatnonzero(rows >= 0)
-            ok = ok[m.emb_w[rows[ok]] > 0]
-            if len(ok) and (looks.embedding_weight > 0).any():
-                llr = self.face.llr(cosine_distance(m.emb[rows[ok]], looks.embedding))
-                out[ok] -= self.cfg.embedding_weight * llr * looks.embedding_weight[None, :]
+        ok = np.flatnonzero(rows >= 0)
+        if len(ok):
+            everyone = np.arange(len(dets))
+            out[ok] = -self._pair_llr(self._models_side(rows[ok]), _looks_side(looks, everyone))
         return out if out.any() else None
 
     # ----------------------------------------------------------------- events
@@ -170,10 +175,10 @@ class AppearanceIdentity:
         clean = looks.clean[cols] & alone
         clean &= dets.confidence[cols] >= self.cfg.clean_min_confidence
         confirmed = table.confirmed[rows]
+        others = m.rows(table.ids)
         if fit_c:
             use = clean & looks.has_signature[cols]
             ready = m.sig_n >= self.cfg.min_observations
-            others = m.rows(table.ids)
             self.colour.learn(
                 *distance_samples(
                     m.sig, ready, mrows, looks.signature[cols], use & confirmed & certain,
@@ -184,7 +189,6 @@ class AppearanceIdentity:
         if fit_e:
             use = looks.embedding_weight[cols] > 0
             ready = m.emb_w > 0
-            others = m.rows(table.ids)
             self.face.learn(
                 *distance_samples(
                     m.emb, ready, mrows, looks.embedding[cols], use & confirmed & certain,
@@ -303,13 +307,11 @@ class AppearanceIdentity:
         if ok.any() and dets.looks is not None:
             who = m.rows(table.ids[np.concatenate([lonely, partner])])
             looks = dets.looks
+            seen = _looks_side(looks, cols)
             refs = [
-                self._look_llr(
-                    looks, cols, looks.has_signature[cols], m.sig[r], m.sig_n[r] >= 1,
-                    m.emb[r], m.emb_w[r] > 0,
-                ).diagonal()
+                self._pair_llr(seen, self._models_side(r, settled=m.sig_n[r] >= 1)).diagonal()
                 for r in (who[: len(lonely)], who[len(lonely) :])
-            ]  # fmt: skip
+            ]
             ok &= refs[1] - refs[0] <= 2.0 * self.cfg.link_margin
         return ok
 
@@ -346,20 +348,41 @@ class AppearanceIdentity:
         alone = (gap <= self.cfg.share_distance_m).sum(axis=1) <= 1
         return far, alone
 
-    def _look_llr(
-        self, looks: Looks, cols: np.ndarray, has_sig: np.ndarray, sig: np.ndarray,
-        sig_ok: np.ndarray, emb: np.ndarray, emb_ok: np.ndarray,
-    ) -> np.ndarray:  # fmt: skip
-        """Log-likelihood ratio ``(len(cols), K)`` of detections against K references."""
-        out = np.zeros((len(cols), len(sig)))
-        if self.colour.ready and sig.shape[1] == looks.signature.shape[1] and sig_ok.any():
-            llr = self.colour.llr(hellinger(looks.signature[cols], sig))
-            out += self.cfg.appearance_weight * llr * (has_sig[:, None] & sig_ok[None, :])
-        w = looks.embedding_weight[cols]
-        if self.face.ready and emb.shape[1] == looks.embedding.shape[1] and emb_ok.any():
-            llr = self.face.llr(cosine_distance(looks.embedding[cols], emb))
-            out += self.cfg.embedding_weight * llr * w[:, None] * emb_ok[None, :]
+    def _pair_llr(self, a: _Side, b: _Side) -> np.ndarray:
+        """Log-likelihood ratio ``(len(a), len(b))`` of "same person", colour and embedding."""
+        out = np.zeros((len(a.sig), len(b.sig)))
+        cfg = self.cfg
+        dim = a.sig.shape[1]
+        if (
+            self.colour.ready
+            and dim
+            and dim == b.sig.shape[1]
+            and a.sig_ok.any()
+            and b.sig_ok.any()
+        ):
+            llr = self.colour.llr(hellinger(a.sig, b.sig))
+            out += cfg.appearance_weight * llr * (a.sig_ok[:, None] & b.sig_ok[None, :])
+        dim = a.emb.shape[1]
+        if self.face.ready and dim and dim == b.emb.shape[1] and a.emb_w.any() and b.emb_w.any():
+            llr = self.face.llr(cosine_distance(a.emb, b.emb))
+            out += cfg.embedding_weight * llr * a.emb_w[:, None] * b.emb_w[None, :]
         return out
+
+    def _models_side(self, rows: np.ndarray, settled: np.ndarray | None = None) -> _Side:
+        """Track models ``rows``; colours count where ``settled`` (default: enough seen)."""
+        m = self.models
+        if settled is None:
+            settled = m.sig_n[rows] >= self.cfg.min_observations
+        return _Side(m.sig[rows], settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float))
+
+    def _pool_side(self, entries: tuple[PooledIdentity, ...]) -> _Side:
+        """Pooled identities."""
+        return _Side(
+            np.array([e.sig for e in entries]),
+            np.array([e.sig_n >= self.cfg.min_observations for e in entries]),
+            np.array([e.emb for e in entries]),
+            np.array([float(e.emb_w > 0) for e in entries]),
+        )
 
     def _gather_evidence(
         self,
@@ -377,10 +400,11 @@ class AppearanceIdentity:
             return
         mrows, cols, has_sig = mrows[useful], cols[useful], has_sig[useful]
         rho = self.cfg.evidence_per_observation
+        seen = _looks_side(looks, cols, has_sig)
         if len(self.roster):
             sig, sig_ok = self.roster.references("signature", m.sig.shape[1])
             emb, emb_ok = self.roster.references("embedding", m.emb.shape[1])
-            llr = self._look_llr(looks, cols, has_sig, sig, sig_ok, emb, emb_ok)
+            llr = self._pair_llr(seen, _Side(sig, sig_ok, emb, emb_ok.astype(float)))
             cap = 4.0 * self.cfg.link_evidence
             np.add.at(m.name_ev, mrows, rho * llr)
             np.clip(m.name_ev, -cap, cap, out=m.name_ev)
@@ -390,16 +414,13 @@ class AppearanceIdentity:
         if not young.any():
             return
         mrows, cols, has_sig = mrows[young], cols[young], has_sig[young]
+        seen = _looks_side(looks, cols, has_sig)
         entries = self.pool + tuple(
             self.links[int(m.ids[r])] for r in mrows if int(m.ids[r]) in self.links
         )
         if not entries:
             return
-        sig = np.array([e.sig for e in entries])
-        sig_ok = np.array([e.sig_n >= self.cfg.min_observations for e in entries])
-        emb = np.array([e.emb for e in entries])
-        emb_ok = np.array([e.emb_w > 0 for e in entries])
-        llr = self._look_llr(looks, cols, has_sig, sig, sig_ok, emb, emb_ok)
+        llr = self._pair_llr(seen, self._pool_side(entries))
         where = np.array([e.xy for e in entries])
         since = np.array([e.lost_at for e in entries])
         gap = np.linalg.norm(dets.xy[cols][:, None, :] - where[None, :, :], axis=2)
@@ -496,41 +517,16 @@ class AppearanceIdentity:
             self.counters["reidentified"] += 1
         self.pool = tuple(e for k, e in enumerate(self.pool) if k not in taken)
 
-    def _model_llr(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Log-likelihood ratio ``(len(a), len(b))`` of model rows ``a`` against ``b``."""
-        m, cfg = self.models, self.cfg
-        out = np.zeros((len(a), len(b)))
-        if self.colour.ready and m.sig.shape[1]:
-            ok = m.sig_n >= cfg.min_observations
-            llr = self.colour.llr(hellinger(m.sig[a], m.sig[b]))
-            out += cfg.appearance_weight * llr * (ok[a][:, None] & ok[b][None])
-        if self.face.ready and m.emb.shape[1]:
-            ok = m.emb_w > 0
-            llr = self.face.llr(cosine_distance(m.emb[a], m.emb[b]))
-            out += cfg.embedding_weight * llr * (ok[a][:, None] & ok[b][None])
-        return out
-
     def _beats_impostors(self, cands: list[int]) -> np.ndarray:
         """Whether each candidate looks more like each pooled identity than others did.
 
         ``(C, P)``: the candidate's model against the pooled one beats, by
         ``reid_margin``, the most alike anyone known to be someone else ever looked.
         """
-        m = self.models
-        rows = m.rows(np.array(cands, dtype=np.int64))
+        rows = self.models.rows(np.array(cands, dtype=np.int64))
+        everything = np.ones(len(rows), dtype=bool)  # a candidate's colours always count
+        out = self._pair_llr(self._models_side(rows, everything), self._pool_side(self.pool))
         pool = self.pool
-        sig = np.array([e.sig for e in pool])
-        emb = np.array([e.emb for e in pool])
-        out = np.zeros((len(cands), len(pool)))
-        if self.colour.ready and m.sig.shape[1] == sig.shape[1]:
-            ok = np.array([e.sig_n >= self.cfg.min_observations for e in pool])
-            llr = self.colour.llr(hellinger(m.sig[rows], sig))
-            out += self.cfg.appearance_weight * llr * ok[None]
-        if self.face.ready and m.emb.shape[1] == emb.shape[1]:
-            ok = np.array([e.emb_w > 0 for e in pool])
-            w = (m.emb_w[rows] > 0)[:, None]
-            llr = self.face.llr(cosine_distance(m.emb[rows], emb))
-            out += self.cfg.embedding_weight * llr * (ok[None] & w)
         impostor = np.array([e.impostor for e in pool])
         return out >= impostor[None] + self.cfg.reid_margin
 
@@ -545,7 +541,9 @@ class AppearanceIdentity:
         others = np.setdiff1d(np.flatnonzero(m.sig_n >= self.cfg.min_observations), [row])
         if not len(others):
             return -np.inf
-        return float(self._model_llr(np.array([row]), others).max())
+        return float(
+            self._pair_llr(self._models_side(np.array([row])), self._models_side(others)).max()
+        )
 
     def _name(self, table: TrackTable) -> None:
         """Names to confirmed tracks one-to-one, by evidence, with hysteresis."""
@@ -610,3 +608,13 @@ def _mean(evidence: tuple[float, int] | None) -> float:
     if evidence[1] < MIN_REID_OBSERVATIONS:
         return 0.0
     return evidence[0] / evidence[1]
+
+
+def _looks_side(looks: Looks, cols: np.ndarray, has_sig: np.ndarray | None = None) -> _Side:
+    """Detections ``cols`` of a batch; colours count where ``has_sig`` (default: any)."""
+    return _Side(
+        looks.signature[cols],
+        looks.has_signature[cols] if has_sig is None else has_sig,
+        looks.embedding[cols],
+        looks.embedding_weight[cols],
+    )
