@@ -66,15 +66,22 @@ class IdentityConfig(StrictModel):
         (a mean, not a sum: frames are not independent, and a sum would soon pass any
         threshold for a stranger who merely dresses alike).
     reid_margin : float
-        Least lead of that mean over every rival (another pooled identity, another
-        young track).
+        Least lead of that mean over every other young track that could be the same
+        pooled identity.
+    reid_min_posterior : float
+        Least probability that the track is the pooled identity, given its evidence
+        against every pooled identity it could be and the share of new tracks that turn
+        out to be returns, estimated online (:mod:`~openptrack_py.tracking.identity.returns`):
+        the more look-alikes in the pool and the rarer returns are at the site, the more
+        evidence a link needs. 0.5 is the Bayes decision when a wrong link costs as much
+        as a missed one.
     unlink_evidence : float
         A link is undone when the mean falls to this (later observations contradict
         it), and the identity returns to the pool.
     share_max_s : float
         Two tracks known to be two people may share one detection (people standing so
-        close they come out as one blob) for at most this long after the one without a
-        detection of its own was last seen alone.
+        close they come out as one blob) for at most this long after they were last
+        detected as two people in one sensor frame.
     share_distance_m : float
         ... and only while the two tracks are at most this far apart (two people side
         by side in one blob: each within a body width of its centroid).
@@ -99,6 +106,7 @@ class IdentityConfig(StrictModel):
     reid_min_s: float = Field(2.0, ge=0.0, le=600.0)
     reid_mean_llr: float = Field(1.0, gt=0.0, le=20.0)
     reid_margin: float = Field(0.5, ge=0.0, le=20.0)
+    reid_min_posterior: float = Field(0.5, gt=0.0, lt=1.0)
     unlink_evidence: float = Field(0.0, le=1.0, ge=-20.0)
     share_max_s: float = Field(60.0, ge=0.0, le=3600.0)
     share_distance_m: float = Field(0.6, ge=0.0, le=5.0)

@@ -22,6 +22,7 @@ from openptrack_py.tracking.identity import (
     save_roster,
 )
 from openptrack_py.tracking.identity.likelihood import DistanceLikelihood, hellinger
+from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
 from openptrack_py.tracking.state import Looks
 from tests.tracking.helpers import FRAME, T0
 
@@ -447,3 +448,65 @@ def test_identity_embeddings_alone_reidentify_people_who_dress_alike() -> None:
         out = tracker.step(batch(t + (j + 1) * FRAME, dets, 5000 + j))
     back = [tr for tr in out.tracks if tr.x > 5.0]
     assert back and back[0].stable_id == before[4]
+
+
+def _walk_out_together_then_someone_comes_in(tracker, rng, t0, k0):
+    """Two people walk side by side out at x = 9, nothing is seen for 2 s, and a third
+    person comes in through the same place, in colours as like the two together as a
+    blob of them would be (where many dress alike, somebody does). Returns the tracks
+    near the newcomer during its last second."""
+    k, out = k0, None
+    for j in range(150):  # side by side, detected as two, walking out
+        t = t0 + j * FRAME
+        x, half = 5.0 + 0.03 * j, 0.5 if j < 100 else 0.25  # closing up at the door
+        dets = (
+            person(x, 11.0 - half, look(2, rng), u=300),
+            person(x, 11.0 + half, look(11, rng), u=600),
+        )
+        out = tracker.step(batch(t, dets, k))
+        k += 1
+    t0 = t0 + 150 * FRAME + 2.0  # gone; nothing seen for 2 s
+    near = []
+    for j in range(150):  # the next person comes in where they left
+        t = t0 + j * FRAME
+        mixed = tuple((np.array(look(2, rng)) + np.array(look(11, rng))) // 2)
+        out = tracker.step(batch(t, (person(9.5 - 0.03 * j, 11.0, mixed, u=450),), k))
+        k += 1
+        if j >= 120:
+            x = 9.5 - 0.03 * j
+            near.append({tr.id for tr in out.tracks if abs(tr.x - x) < 1.0 and tr.y > 10})
+    return near
+
+
+def test_two_people_who_walk_out_together_do_not_haunt_the_next_one_in() -> None:
+    rng = np.random.default_rng(21)
+    tracker = identity_tracker()
+    _, t = _warm_up(tracker, rng, frames=400)
+    near = _walk_out_together_then_someone_comes_in(tracker, rng, t + 1.0, 5000)
+    assert all(len(ids) <= 1 for ids in near), near  # no ghost shares the newcomer
+
+
+def test_the_return_rate_is_learned_from_the_evidence() -> None:
+    """EM recovers the share of returns from calibrated likelihood ratios (an oracle)."""
+    rng = np.random.default_rng(3)
+    for true_rate in (0.1, 0.5, 0.9):
+        est = ReturnRate(memory=400)
+        for _ in range(400):
+            n = 8
+            # a calibrated log-likelihood ratio: N(+2, 2) for the same person, N(-2, 2)
+            # for someone else (the ratio of the two densities is exp(2 x))
+            llr = 2.0 * rng.normal(-1.0, 1.0, n)
+            if rng.random() < true_rate:
+                llr[0] = 2.0 * rng.normal(1.0, 1.0)
+            est.add(llr)
+        assert abs(est.rate - true_rate) < 0.1, (true_rate, est.rate)
+
+
+def test_a_link_needs_more_evidence_among_more_look_alikes_and_rarer_returns() -> None:
+    one = link_posterior(np.array([[2.0, -np.inf, -np.inf]]), 0.5)
+    many = link_posterior(np.array([[2.0, 0.0, 0.0]]), 0.5)
+    rare = link_posterior(np.array([[2.0, -np.inf, -np.inf]]), 0.1)
+    assert one[0, 0] > many[0, 0] and one[0, 0] > rare[0, 0]
+    assert one[0, 1] == 0.0  # out of reach
+    both = link_posterior(np.array([[3.0, 3.0], [-1.0, 0.5]]), 0.7)
+    assert (both.sum(axis=1) <= 1.0).all()

@@ -49,6 +49,7 @@ from openptrack_py.tracking.identity.likelihood import (
     rowwise_distance,
 )
 from openptrack_py.tracking.identity.models import PooledIdentity, TrackModels
+from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
 from openptrack_py.tracking.identity.roster import Roster
 from openptrack_py.tracking.neighbours import close_pairs
 from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
@@ -57,6 +58,15 @@ MIN_REID_OBSERVATIONS = 10
 """Observations of a young track against a pooled identity before their mean counts."""
 DISTINCT_OBSERVATIONS = 10
 """Clean signatures each of two tracks needs before they can be judged two people."""
+BLOB_GAP_S = 1.0
+"""Longest time a blob of two may go undetected and still be shared (seconds).
+
+A blob of two people is detected as often as a person is: with a third to almost half
+of a sensor's frames missed (OpenPTrack's paper: Kinect v2 misses 29.5 % in its crowd
+test, 45 % in its occlusion test) and several sensors at 15-30 Hz, a second without any
+detection is no blob at all. Two tracks that both went unseen for longer and then meet
+on one detection are no evidence of two people (two tracks of people who walked out,
+catching the next person in through the same door)."""
 
 
 @dataclass(frozen=True)
@@ -95,7 +105,9 @@ class AppearanceIdentity:
         self.links: dict[int, PooledIdentity] = {}
         self.reid_ev: dict[int, dict[int, tuple[float, int]]] = {}
         self.named: dict[int, int] = {}
-        self.apart: set[tuple[int, int]] = set()
+        self.apart: dict[tuple[int, int], float] = {}
+        self.together: dict[tuple[int, int], float] = {}
+        self.returns = ReturnRate()
         self.roster = Roster()
         self.counters = {"reidentified": 0, "unlinked": 0}
         self.set_roster(roster or Roster())
@@ -166,8 +178,10 @@ class AppearanceIdentity:
         if certain is None:
             certain = np.zeros(len(rows), dtype=bool)
         rows, cols, mrows, certain = rows[ok], cols[ok], mrows[ok], certain[ok]
-        m.seen[mrows] = t
-        self._seen_apart(table, rows)
+        # two people, not one person and a spurious second blob beside them (weaker,
+        # and overlapping them in the image)
+        sure = looks.clean[cols] & (dets.confidence[cols] >= self.cfg.clean_min_confidence)
+        self._seen_apart(table, rows[sure], t)
         fit_c, fit_e = m.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
         far, alone = self._surroundings(table, dets.xy[cols])
         # a detection with another person within a body width may be both of them in
@@ -236,16 +250,18 @@ class AppearanceIdentity:
         self.pool = tuple(pooled)
         m.drop(mrows[mrows >= 0])
         gone = set(ids.tolist())
-        self.apart = {p for p in self.apart if p[0] not in gone and p[1] not in gone}
+        self.apart = {p: s for p, s in self.apart.items() if p[0] not in gone and p[1] not in gone}
+        self.together = {p: s for p, s in self.together.items() if p in self.apart}
 
-    def _seen_apart(self, table: TrackTable, rows: np.ndarray) -> None:
-        """Tracks ``rows`` were detected in one sensor frame: near pairs are two people."""
+    def _seen_apart(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+        """Tracks ``rows`` were detected in one sensor frame at ``t``: near pairs are two."""
         if len(rows) < 2:
             return
         ii, jj = close_pairs(table.x[rows, 0:2], ISOLATION_M)
         ids = table.ids[rows]
         for a, b in zip(ids[ii].tolist(), ids[jj].tolist(), strict=True):
-            self.apart.add((a, b) if a < b else (b, a))
+            self.apart[(a, b) if a < b else (b, a)] = t
+            self.together[(a, b) if a < b else (b, a)] = t
 
     def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
         """Pairs known to be two people: seen apart, and their looks say two people.
@@ -291,16 +307,22 @@ class AppearanceIdentity:
     ) -> np.ndarray:
         """Which ``lonely`` tracks may follow their ``partner``'s detection ``cols``.
 
-        Known two people side by side, ``lonely`` seen alone within ``share_max_s``, and
-        the detection not clearly the partner alone. A blob of two people mixes their
-        looks; a detection that looks like the partner and unlike the lonely track's
-        person (by more than twice ``link_margin``) is the partner alone: the lonely one
-        has left, and following it would make a ghost.
+        Known two people side by side: the pair last detected as two within
+        ``share_max_s`` (two tracks that take one detection turn about, each seeing it
+        as its own now and then, are no evidence of two people), explained by one
+        detection without a gap of more than :data:`BLOB_GAP_S` since, and the
+        detection looking at least as much like the two of them together (the mean of
+        their colour models: a blob mixes their looks) as like the partner alone (the
+        lonely one has left, and following the partner would make a ghost).
         """
         m = self.models
-        rows = m.rows(table.ids[lonely])
-        ok = np.zeros(len(rows), dtype=bool)
-        ok[rows >= 0] = t - m.seen[rows[rows >= 0]] <= self.cfg.share_max_s
+        pairs = [
+            (a, b) if a < b else (b, a)
+            for a, b in zip(table.ids[lonely].tolist(), table.ids[partner].tolist(), strict=True)
+        ]
+        since = np.array([self.apart.get(p, -np.inf) for p in pairs])
+        shared = np.array([self.together.get(p, -np.inf) for p in pairs])
+        ok = (t - since <= self.cfg.share_max_s) & (t - shared <= BLOB_GAP_S)
         gap = np.linalg.norm(table.x[lonely, 0:2] - table.x[partner, 0:2], axis=1)
         ok &= gap <= self.cfg.share_distance_m
         ok &= self.distinct(table, lonely, partner)
@@ -308,11 +330,15 @@ class AppearanceIdentity:
             who = m.rows(table.ids[np.concatenate([lonely, partner])])
             looks = dets.looks
             seen = _looks_side(looks, cols)
-            refs = [
-                self._pair_llr(seen, self._models_side(r, settled=m.sig_n[r] >= 1)).diagonal()
-                for r in (who[: len(lonely)], who[len(lonely) :])
-            ]
-            ok &= refs[1] - refs[0] <= 2.0 * self.cfg.link_margin
+            lone, part = who[: len(lonely)], who[len(lonely) :]
+            alone = self._pair_llr(seen, self._models_side(part, settled=m.sig_n[part] >= 1))
+            both = _Side(
+                0.5 * (m.sig[lone] + m.sig[part]), np.ones(len(lone), dtype=bool),
+                m.emb[part], np.zeros(len(part)),
+            )  # fmt: skip
+            ok &= self._pair_llr(seen, both).diagonal() >= alone.diagonal()
+        for k in np.flatnonzero(ok).tolist():
+            self.together[pairs[k]] = t
         return ok
 
     def annotate(self, tracks: list[Track]) -> list[Track]:
@@ -447,7 +473,7 @@ class AppearanceIdentity:
             entry = self.links[tid]
             if t - m.born[row] > cfg.reid_window_s:
                 del self.links[tid]  # settled
-                self.reid_ev.pop(tid, None)
+                self._settle(tid)
             elif _mean(self.reid_ev.get(tid, {}).get(entry.stable)) <= cfg.unlink_evidence:
                 del self.links[tid]
                 m.stable[row], m.own[row] = tid, True
@@ -455,10 +481,17 @@ class AppearanceIdentity:
                 self.counters["unlinked"] += 1
         for tid in [k for k in self.reid_ev if k not in self.links]:
             row = m.rows(np.array([tid]))[0]
-            if row < 0 or t - m.born[row] > cfg.reid_window_s:
+            if row < 0:
                 del self.reid_ev[tid]
+            elif t - m.born[row] > cfg.reid_window_s:
+                self._settle(tid)
         self._link(table, t)
         self._name(table)
+
+    def _settle(self, tid: int) -> None:
+        """Track ``tid``'s re-identification window is over: its evidence joins the prior."""
+        ev = self.reid_ev.pop(tid, {})
+        self.returns.add(np.array([_mean(e) for e in ev.values()]))
 
     def _link(self, table: TrackTable, t: float) -> None:
         """Young confirmed tracks take back the pooled identities they clearly are.
@@ -483,20 +516,19 @@ class AppearanceIdentity:
         ]  # fmt: skip
         if not cands:
             return
-        ev = np.array([[_mean(self.reid_ev[c].get(e.stable)) for e in self.pool] for c in cands])
-        ev = np.maximum(ev, -1e3)
-        top_row, top_col = ev.max(axis=1, keepdims=True), ev.max(axis=0, keepdims=True)
-        floor_row, floor_col = np.full_like(top_row, -1e3), np.full_like(top_col, -1e3)
-        second_row = np.sort(ev, axis=1)[:, -2:-1] if ev.shape[1] > 1 else floor_row
-        second_col = np.sort(ev, axis=0)[-2:-1, :] if ev.shape[0] > 1 else floor_col
-        # each pair's strongest rival: another identity for this track, and another
-        # track for this identity (two pooled identities that look alike block each
-        # other: better no link than a stranger's)
-        rival_row = np.where(ev >= top_row, second_row, top_row)
+        raw = np.array([[_mean(self.reid_ev[c].get(e.stable)) for e in self.pool] for c in cands])
+        ev = np.maximum(raw, -1e3)
+        # another young track for the same identity: two that look alike block each
+        # other (better no link than a stranger's); rivals for the same track are in
+        # the posterior's normalisation
+        top_col = ev.max(axis=0, keepdims=True)
+        second_col = np.full_like(top_col, -1e3)
+        if ev.shape[0] > 1:
+            second_col = np.sort(ev, axis=0)[-2:-1, :]
         rival_col = np.where(ev >= top_col, second_col, top_col)
         qualifies = (
             (ev >= cfg.reid_mean_llr)
-            & (ev - rival_row >= cfg.reid_margin)
+            & (link_posterior(raw, self.returns.rate) >= cfg.reid_min_posterior)
             & (ev - rival_col >= cfg.reid_margin)
         )
         if qualifies.any():
@@ -576,13 +608,18 @@ class AppearanceIdentity:
         return (
             self.models.copy(), self.pool, dict(self.links),
             {k: dict(v) for k, v in self.reid_ev.items()}, dict(self.named),
-            self.colour.state(), self.face.state(), frozenset(self.apart),
+            self.colour.state(), self.face.state(), dict(self.apart), self.returns.state(),
+            dict(self.together),
         )  # fmt: skip
 
     def restore(self, state: tuple) -> None:
         """Return to a :meth:`snapshot`."""
-        models, pool, links, reid_ev, named, colour, face, apart = state
-        self.apart = set(apart)
+        models, pool, links, reid_ev, named, colour, face, apart, *rest = state
+        # checkpoints written before the time was kept hold a set: seen apart long ago
+        self.apart = dict(apart) if isinstance(apart, dict) else dict.fromkeys(apart, -np.inf)
+        if rest:  # checkpoints written before the return rate was kept lack it
+            self.returns.restore(rest[0])
+        self.together = dict(rest[1]) if len(rest) > 1 else dict(self.apart)
         self.models = models.copy()
         self.pool, self.links, self.named = pool, dict(links), dict(named)
         self.reid_ev = {k: dict(v) for k, v in reid_ev.items()}

@@ -34,8 +34,6 @@ class TrackModels:
         Whether ``stable`` is the track's own (not taken from a pooled identity).
     born : ndarray
         Time of the track's first detection.
-    seen : ndarray
-        Time of its last detection of its own (not shared with another track).
     name_ev : ndarray
         ``(n, R)`` evidence (log-likelihood ratio) for each registered name.
     """
@@ -48,11 +46,10 @@ class TrackModels:
     stable: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_INT))
     own: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     born: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    seen: np.ndarray = field(default_factory=lambda: np.zeros(0))
     name_ev: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     COLUMNS = (
-        "ids", "sig", "sig_n", "emb", "emb_w", "stable", "own", "born", "seen", "name_ev",
+        "ids", "sig", "sig_n", "emb", "emb_w", "stable", "own", "born", "name_ev",
     )  # fmt: skip
 
     def __len__(self) -> int:
@@ -83,7 +80,6 @@ class TrackModels:
         self.stable = np.concatenate([self.stable, ids.astype(_INT)])
         self.own = np.concatenate([self.own, np.ones(n, dtype=bool)])
         self.born = np.concatenate([self.born, np.full(n, born)])
-        self.seen = np.concatenate([self.seen, np.full(n, born)])
         self.name_ev = np.vstack([self.name_ev, np.zeros((n, self.name_ev.shape[1]))])
 
     def drop(self, rows: np.ndarray) -> None:
