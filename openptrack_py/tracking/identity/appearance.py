@@ -259,9 +259,8 @@ class AppearanceIdentity:
             return
         ii, jj = close_pairs(table.x[rows, 0:2], ISOLATION_M)
         ids = table.ids[rows]
-        for a, b in zip(ids[ii].tolist(), ids[jj].tolist(), strict=True):
-            self.apart[(a, b) if a < b else (b, a)] = t
-            self.together[(a, b) if a < b else (b, a)] = t
+        for pair in _pairs(ids[ii], ids[jj]):
+            self.apart[pair] = self.together[pair] = t
 
     def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
         """Pairs known to be two people: seen apart, and their looks say two people.
@@ -274,11 +273,8 @@ class AppearanceIdentity:
         """
         m = self.models
         a, b = m.rows(table.ids[rows_a]), m.rows(table.ids[rows_b])
-        ida, idb = table.ids[rows_a].tolist(), table.ids[rows_b].tolist()
-        seen = np.array(
-            [((x, y) if x < y else (y, x)) in self.apart for x, y in zip(ida, idb, strict=True)],
-            dtype=bool,
-        )
+        pairs = _pairs(table.ids[rows_a], table.ids[rows_b])
+        seen = np.array([p in self.apart for p in pairs], dtype=bool)
         ok = (a >= 0) & (b >= 0) & seen
         llr = np.zeros(len(a))
         known = np.zeros(len(a), dtype=bool)
@@ -316,10 +312,7 @@ class AppearanceIdentity:
         lonely one has left, and following the partner would make a ghost).
         """
         m = self.models
-        pairs = [
-            (a, b) if a < b else (b, a)
-            for a, b in zip(table.ids[lonely].tolist(), table.ids[partner].tolist(), strict=True)
-        ]
+        pairs = _pairs(table.ids[lonely], table.ids[partner])
         since = np.array([self.apart.get(p, -np.inf) for p in pairs])
         shared = np.array([self.together.get(p, -np.inf) for p in pairs])
         ok = (t - since <= self.cfg.share_max_s) & (t - shared <= BLOB_GAP_S)
@@ -628,6 +621,13 @@ class AppearanceIdentity:
         if self.models.name_ev.shape[1] != len(self.roster):
             self.models.name_ev = np.zeros((len(self.models), len(self.roster)))
             self.named = {}
+
+
+def _pairs(ids_a: np.ndarray, ids_b: np.ndarray) -> list[tuple[int, int]]:
+    """Each pair of track ids as a key, the smaller id first."""
+    return [
+        (a, b) if a < b else (b, a) for a, b in zip(ids_a.tolist(), ids_b.tolist(), strict=True)
+    ]
 
 
 def _remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:

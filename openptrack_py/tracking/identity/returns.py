@@ -99,7 +99,7 @@ def link_posterior(mean_llr: np.ndarray, rate: float) -> np.ndarray:
         ``(C, P)`` posterior probabilities (0 where out of reach); each row sums to at
         most 1 (the rest is "a stranger").
     """
-    lr = np.exp(np.where(np.isfinite(mean_llr), mean_llr, -np.inf))
+    lr = np.exp(mean_llr)
     reachable = np.isfinite(mean_llr).sum(axis=1, keepdims=True)
     n = np.maximum(reachable, 1)
     mean = lr.sum(axis=1, keepdims=True) / n
