@@ -39,15 +39,17 @@ class GroundConfig(StrictModel):
     angle_allowance_deg : float
         How far the floor's normal may be from the expected up direction (Zhang et al.,
         "Children Behavior Tracking and Personal Identification By Multiple Kinect
-        Sensors", Eq. 1). With the tilt unknown the allowance is at least 45 degrees
-        around an upright camera's up, and if no floor is found there, 30 degrees around
-        a camera pitched 50 degrees down.
+        Sensors", Eq. 1). With the tilt unknown, floors are tried for an upright camera
+        (at least 45 degrees around its up), a steep one and one looking straight down
+        (:func:`openptrack_py.detection.ground.choose_floor`).
     inlier_m : float
         RANSAC inlier distance.
     max_angle_diff_deg, max_offset_diff_m : float
         ``both``: agreement needed between estimated and calibrated planes.
     refine_rate : float
         Weight of each frame's least-squares fit when refining.
+    accumulate_frames : int
+        The floor is searched in this many recent frames together.
     """
 
     mode: Literal["auto", "calibration", "both"] = "both"
@@ -59,6 +61,7 @@ class GroundConfig(StrictModel):
     max_angle_diff_deg: float = Field(5.0, gt=0.0, le=90.0)
     max_offset_diff_m: float = Field(0.15, gt=0.0, le=5.0)
     refine_rate: float = Field(0.2, ge=0.0, le=1.0)
+    accumulate_frames: int = Field(5, ge=1, le=300)
 
 
 class BackgroundConfig(StrictModel):

@@ -17,6 +17,7 @@ least-squares fit of its inliers in every frame.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,19 +130,40 @@ def _orient_up(normal: np.ndarray, offset: float) -> tuple[np.ndarray, float]:
     return (-normal, -offset) if offset < 0 else (normal, offset)
 
 
-def estimate_ground(
+@dataclass(frozen=True, slots=True)
+class PlaneCandidate:
+    """A plane extracted by RANSAC, oriented with the camera above it.
+
+    Parameters
+    ----------
+    normal : ndarray
+        Unit normal, optical frame, pointing to the camera's side.
+    offset : float
+        The camera's distance to the plane, metres.
+    inliers : int
+        Points of the searched sample within the inlier distance.
+    """
+
+    normal: np.ndarray
+    offset: float
+    inliers: int
+
+    def plane(self) -> GroundPlane:
+        """As a :class:`GroundPlane` (source ``auto``)."""
+        return GroundPlane(tuple(float(v) for v in self.normal), float(self.offset), "auto")
+
+
+def extract_planes(
     points: np.ndarray,
     rng: np.random.Generator,
     *,
-    expected_up: np.ndarray | None = None,
-    angle_allowance_deg: float = 45.0,
     inlier_m: float = 0.03,
     max_planes: int = 4,
     hypotheses: int = 200,
     sample: int = 6000,
     min_inlier_fraction: float = 0.04,
-) -> GroundPlane | None:
-    """Find the floor in a cloud: the lowest near-horizontal RANSAC plane.
+) -> list[PlaneCandidate]:
+    """The largest planes of a cloud, one after another (each one's inliers removed).
 
     Parameters
     ----------
@@ -149,36 +171,24 @@ def estimate_ground(
         ``(n, 3)`` finite optical-frame points.
     rng : numpy.random.Generator
         Sampling randomness.
-    expected_up : ndarray, optional
-        Expected floor normal (unit, optical frame); ``-y`` (an upright camera) if omitted.
-    angle_allowance_deg : float
-        Largest angle between a candidate's normal and ``expected_up``.
     inlier_m : float
         Inlier distance.
     max_planes : int
-        Planes extracted (each one's inliers removed before the next).
+        Planes extracted at most.
     hypotheses : int
         Random triples tried per plane.
     sample : int
         Points used for the search (a random subset).
     min_inlier_fraction : float
         A plane needs at least this share of the sample.
-
-    Returns
-    -------
-    GroundPlane or None
-        None when no plane qualifies.
     """
     pts = np.asarray(points, dtype=np.float64)
     if len(pts) < 3:
-        return None
+        return []
     if len(pts) > sample:
         pts = pts[rng.choice(len(pts), sample, replace=False)]
-    up = np.array([0.0, -1.0, 0.0]) if expected_up is None else np.asarray(expected_up, float)
-    up = up / np.linalg.norm(up)
-    cos_min = math.cos(math.radians(angle_allowance_deg))
     need = max(int(min_inlier_fraction * len(pts)), 30)
-    candidates: list[tuple[np.ndarray, float, int]] = []
+    found: list[PlaneCandidate] = []
     remaining = pts
     for _ in range(max_planes):
         if len(remaining) < need:
@@ -201,14 +211,89 @@ def estimate_ground(
         normal, offset = fit_plane(remaining[inliers])
         inliers = np.abs(remaining @ normal + offset) < inlier_m
         normal, offset = _orient_up(*fit_plane(remaining[inliers]))
-        if float(normal @ up) >= cos_min:
-            candidates.append((normal, offset, int(inliers.sum())))
+        found.append(PlaneCandidate(normal, float(offset), int(inliers.sum())))
         remaining = remaining[~inliers]
-    if not candidates:
-        return None
-    # The lowest plane: farthest below the camera.
-    normal, offset, _ = max(candidates, key=lambda c: c[1])
-    return GroundPlane(tuple(float(v) for v in normal), float(offset), "auto")
+    return found
+
+
+def lowest_within(
+    candidates: list[PlaneCandidate], up: np.ndarray, allowance_deg: float
+) -> PlaneCandidate | None:
+    """The lowest candidate (farthest below the camera) whose normal is near ``up``."""
+    up = np.asarray(up, dtype=float) / np.linalg.norm(up)
+    cos_min = math.cos(math.radians(allowance_deg))
+    near = [c for c in candidates if float(c.normal @ up) >= cos_min]
+    return max(near, key=lambda c: c.offset) if near else None
+
+
+def estimate_ground(
+    points: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    expected_up: np.ndarray | None = None,
+    angle_allowance_deg: float = 45.0,
+    inlier_m: float = 0.03,
+    max_planes: int = 4,
+    hypotheses: int = 200,
+    sample: int = 6000,
+    min_inlier_fraction: float = 0.04,
+) -> GroundPlane | None:
+    """Find the floor in a cloud: the lowest plane whose normal is near the expected up.
+
+    Parameters
+    ----------
+    points : ndarray
+        ``(n, 3)`` finite optical-frame points.
+    rng : numpy.random.Generator
+        Sampling randomness.
+    expected_up : ndarray, optional
+        Expected floor normal (unit, optical frame); ``-y`` (an upright camera) if omitted.
+    angle_allowance_deg : float
+        Largest angle between a candidate's normal and ``expected_up``.
+    inlier_m, max_planes, hypotheses, sample, min_inlier_fraction
+        As :func:`extract_planes`.
+
+    Returns
+    -------
+    GroundPlane or None
+        None when no plane qualifies.
+    """
+    candidates = extract_planes(
+        points, rng, inlier_m=inlier_m, max_planes=max_planes, hypotheses=hypotheses,
+        sample=sample, min_inlier_fraction=min_inlier_fraction,
+    )  # fmt: skip
+    up = np.array([0.0, -1.0, 0.0]) if expected_up is None else np.asarray(expected_up, float)
+    best = lowest_within(candidates, up, angle_allowance_deg)
+    return None if best is None else best.plane()
+
+
+DOWN_DOMINANCE = 1.5
+"""With the tilt unknown, a floor for a camera looking (nearly) straight down is taken
+over an upright camera's only when its plane holds this many times the points: a
+ceiling sensor near a wall sees the wall as a plane an upright camera's floor could be
+(the two worlds are 90-degree rotations of each other), but the floor under it is the
+larger plane; a forward camera that sees more wall than floor still picks the floor."""
+
+
+def choose_floor(candidates: list[PlaneCandidate], config: GroundConfig) -> GroundPlane | None:
+    """The floor among extracted planes when the sensor's tilt is not known.
+
+    Tries, in order, an upright camera (normal within 45 degrees of ``-y``, or the
+    configured allowance if larger), a steep one (within 30 degrees of a 50-degree
+    tilt) and one looking straight down (within 30 degrees of ``-z``); within each,
+    the lowest plane. A straight-down floor replaces an upright or steep one only when it
+    holds :data:`DOWN_DOMINANCE` times as many points.
+    """
+    upright = max(config.angle_allowance_deg, 45.0)
+    tiers = [
+        lowest_within(candidates, np.array([0.0, -1.0, 0.0]), upright),
+        lowest_within(candidates, _up_of_tilt(GroundTracker.STEEP_TILT_DEG), 30.0),
+    ]
+    first = next((c for c in tiers if c is not None), None)
+    down = lowest_within(candidates, np.array([0.0, 0.0, -1.0]), 30.0)
+    if down is not None and (first is None or down.inliers >= DOWN_DOMINANCE * first.inliers):
+        first = down
+    return None if first is None else first.plane()
 
 
 def choose_ground(
@@ -245,7 +330,9 @@ class GroundTracker:
     Notes
     -----
     While no plane is found, the search is retried every :attr:`RETRY_FRAMES` frames;
-    while calibration overrules the estimate, every :attr:`RECHECK_FRAMES`.
+    while calibration overrules the estimate, every :attr:`RECHECK_FRAMES`. Each search
+    runs on the last ``accumulate_frames`` frames together (Munaro et al., OpenPTrack,
+    §5.1): people walking over the floor hide different parts of it in each frame.
     """
 
     REFINE_SAMPLE = 8000
@@ -272,23 +359,36 @@ class GroundTracker:
         self.plane: GroundPlane | None = calibrated if config.mode == "calibration" else None
         self.estimates = 0
         self._since_estimate = 0
+        self._recent: deque[np.ndarray] = deque(maxlen=config.accumulate_frames)
 
     STEEP_TILT_DEG = 50.0
-    """With the tilt unknown and no plane near an upright camera's up, a camera pitched
-    down this much is tried next (within :attr:`STEEP_ALLOWANCE_DEG`)."""
-    STEEP_ALLOWANCE_DEG = 30.0
+    """With the tilt unknown, the second expected tilt tried (see :func:`choose_floor`)."""
 
-    def _expected_ups(self) -> list[tuple[np.ndarray, float]]:
-        """Expected floor normals with their allowances, tried in order."""
+    def _estimate(self) -> GroundPlane | None:
+        """Search the accumulated frames for the floor."""
         cfg = self.config
+        cloud = np.concatenate(list(self._recent)) if self._recent else np.empty((0, 3))
+        candidates = extract_planes(cloud, self.rng, inlier_m=cfg.inlier_m)
         if self.calibrated is not None:
-            return [(np.asarray(self.calibrated.normal), cfg.angle_allowance_deg)]
+            best = lowest_within(
+                candidates, np.asarray(self.calibrated.normal), cfg.angle_allowance_deg
+            )
+            return None if best is None else best.plane()
         if cfg.expected_tilt_deg is not None:
-            return [(_up_of_tilt(cfg.expected_tilt_deg), cfg.angle_allowance_deg)]
-        return [
-            (np.array([0.0, -1.0, 0.0]), max(cfg.angle_allowance_deg, 45.0)),
-            (_up_of_tilt(self.STEEP_TILT_DEG), self.STEEP_ALLOWANCE_DEG),
-        ]
+            best = lowest_within(
+                candidates, _up_of_tilt(cfg.expected_tilt_deg), cfg.angle_allowance_deg
+            )
+            return None if best is None else best.plane()
+        return choose_floor(candidates, cfg)
+
+    def _remember(self, points: np.ndarray) -> None:
+        """Keep a subsample of this frame for the search (:attr:`FRAME_SAMPLE` points)."""
+        if len(points) > self.FRAME_SAMPLE:
+            points = points[self.rng.choice(len(points), self.FRAME_SAMPLE, replace=False)]
+        self._recent.append(np.asarray(points, dtype=np.float64))
+
+    FRAME_SAMPLE = 3000
+    """Points of each frame kept for the accumulated search."""
 
     def update(self, points: np.ndarray) -> GroundPlane | None:
         """The plane to use for this frame's optical-frame points (``None``: not found yet)."""
@@ -296,19 +396,13 @@ class GroundTracker:
         if cfg.mode == "calibration":
             return self.plane
         self._since_estimate += 1
+        searching = self.plane is None or self.plane.source != "auto"
+        if searching:
+            self._remember(points)
         retry = self.RETRY_FRAMES if self.plane is None else self.RECHECK_FRAMES
-        if (self.plane is None or self.plane.source != "auto") and (
-            self.estimates == 0 or self._since_estimate >= retry
-        ):
+        if searching and (self.estimates == 0 or self._since_estimate >= retry):
             self._since_estimate = 0
-            estimate = None
-            for up, allowance in self._expected_ups():
-                estimate = estimate_ground(
-                    points, self.rng, expected_up=up, angle_allowance_deg=allowance,
-                    inlier_m=cfg.inlier_m,
-                )  # fmt: skip
-                if estimate is not None:
-                    break
+            estimate = self._estimate()
             self.estimates += 1
             chosen = (
                 estimate

@@ -13,11 +13,14 @@ Steps, each a small component with its settings in :class:`~openptrack_py.config
    (:mod:`.appearance`: hue bins, then dark, grey and light bins);
 8. **hog** — optional HOG check on the colour or infrared image (:mod:`.hog`).
 
-Positions: the mean of a blob's head points on the floor, pushed ``surface_offset_m``
-away from the sensor (a camera sees the near surface of a body, not its centre), at
-half the blob's height (like PCL's ``tcenter``). They are reported in the world frame
-through the sensor's pose when it has one, else in a floor-aligned frame under the
-sensor (x forward along the floor, y left, z up; ``frame_id`` = the sensor id).
+Positions: the mean of a blob's head points on the floor, pushed away from the sensor
+by ``surface_offset_m`` times the sine of the ray's angle from the vertical (a camera
+that sees a person from the side sees the near surface of the body, not its centre; one
+that looks straight down sees the top of the head, which is the centre:
+:func:`surface_push`), at half the blob's height (like PCL's ``tcenter``). They are
+reported in the world frame through the sensor's pose when it has one, else in a
+floor-aligned frame under the sensor (x forward along the floor, y left, z up;
+``frame_id`` = the sensor id).
 
 Confidence (documented scale, ``[0, 1]``): without the HOG check, a blob that passes
 every test scores ``0.55 + 0.4 * min(1, points / (4 * min_points))`` — more support,
@@ -161,6 +164,22 @@ class _Rays:
         self.y = np.broadcast_to(y[:, None], shape).ravel()
         uu, vv = np.meshgrid(self.u, self.v)
         self.pixels = np.column_stack([uu.ravel(), vv.ravel()])
+
+
+def surface_push(offset_m: float, reach: np.ndarray, drop: np.ndarray) -> np.ndarray:
+    """How far to push each head away from the sensor, along the floor.
+
+    Parameters
+    ----------
+    offset_m : float
+        The push for a person seen from the side (``surface_offset_m``).
+    reach : ndarray
+        Horizontal distance from the sensor's foot to each head, metres.
+    drop : ndarray
+        How far below the sensor each head's top is, metres (clipped at 0: a head
+        level with or above the sensor is seen from the side).
+    """
+    return offset_m * np.sin(np.arctan2(reach, np.maximum(drop, 0.0)))
 
 
 class PeopleDetector:
@@ -342,8 +361,9 @@ class PeopleDetector:
         k = len(blobs)
         xy = blobs.head_xy.copy()
         # the floor frame's origin is the sensor's foot: push away from it
-        reach = np.linalg.norm(xy, axis=1, keepdims=True)
-        xy += cfg.surface_offset_m * xy / np.maximum(reach, 1e-6)
+        reach = np.linalg.norm(xy, axis=1)
+        push = surface_push(cfg.surface_offset_m, reach, floor_from_camera[2, 3] - blobs.top)
+        xy += (push / np.maximum(reach, 1e-6))[:, None] * xy
         floor = np.column_stack([xy, blobs.top / 2])
         camera_from_floor = invert(floor_from_camera)
         optical = apply(camera_from_floor, floor)
