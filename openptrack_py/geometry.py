@@ -37,6 +37,33 @@ def world_from_optical(pose: Pose) -> np.ndarray:
     return transform
 
 
+def pose_from_transform(transform: np.ndarray) -> Pose:
+    """The :class:`~openptrack_py.config.Pose` of a ``world_from_optical`` transform.
+
+    Inverse of :func:`world_from_optical`. Looking straight down, heading and roll turn
+    about the same axis: the roll is then 0 and the heading carries the rotation.
+    """
+    rot = np.asarray(transform, dtype=float)[:3, :3]
+    right, forward = rot[:, 0], rot[:, 2]
+    pitch = math.asin(float(np.clip(-forward[2], -1.0, 1.0)))
+    if math.cos(pitch) > 1e-6:
+        yaw = math.atan2(forward[1], forward[0])
+        right0 = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
+        down0 = np.cross(forward, right0)
+        roll = math.atan2(float(right @ down0), float(right @ right0))
+    else:
+        yaw, roll = math.atan2(right[0], -right[1]), 0.0
+    x, y, z = (float(v) for v in np.asarray(transform, dtype=float)[:3, 3])
+    return Pose(
+        x=x,
+        y=y,
+        z=z,
+        yaw_deg=math.degrees(yaw),
+        pitch_deg=math.degrees(pitch),
+        roll_deg=math.degrees(roll),
+    )
+
+
 def invert(transform: np.ndarray) -> np.ndarray:
     """Inverse of a 4x4 rigid transform."""
     out = np.eye(4)

@@ -9,7 +9,11 @@ camera's floor could be.
 
 from __future__ import annotations
 
+import json
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,7 +25,7 @@ from openptrack_py.geometry import apply, invert, world_from_optical
 from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.sensors import SensorSpec
 from openptrack_py.sim.world import Room
-from tests.conftest import people_snapshot
+from tests.conftest import people_snapshot, python_env
 
 ROOM = Room(8.0, 6.0)
 CORRIDOR = Room(12.0, 2.2)
@@ -117,3 +121,26 @@ def test_a_steep_view_pushes_less_than_a_side_view() -> None:
     below = surface_push(0.12, reach=np.array([0.0]), drop=np.array([1.2]))
     assert side[0] == pytest.approx(0.12 * math.sin(math.atan2(4.0, 0.8)))
     assert below[0] == 0.0
+
+
+def test_detect_finds_floor_and_people_in_a_folder_of_overhead_frames(tmp_path: Path) -> None:
+    """``openptrack detect`` on a recorded overhead sensor: no pose, no plane given."""
+    folder = tmp_path / "top_b"
+    env = python_env()
+    record = [sys.executable, "-m", "openptrack_py.cli", "record-sensor"]
+    subprocess.run(
+        [*record, "sim:overhead:top_b", str(folder), "--frames", "150"],
+        check=True, env=env, capture_output=True, timeout=300,
+    )  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-m", "openptrack_py.cli", "detect", str(folder), "--format", "json"],
+        check=True, env=env, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    records = [json.loads(line) for line in out.stdout.splitlines()]
+    assert len(records) == 150
+    assert all(r["status"] != "no-ground" for r in records)
+    _, _, c, d = records[-1]["ground"]
+    assert c == pytest.approx(-1.0, abs=0.001) and d == pytest.approx(2.9, abs=0.03)
+    heights = [det["height"] for r in records for det in r["detections"]]
+    assert len(heights) >= 60, len(heights)
+    assert all(0.8 <= h <= 2.1 for h in heights), heights

@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         config = detector_config(args)
-        source = open_source(args.input, extra={"sim": _sim_source})
+        source = open_source(args.input, extra={"sim": sim_source})
     except (ConfigError, SourceError) as exc:
         print(f"openptrack detect: {exc}", file=sys.stderr)
         return EXIT_CONFIG
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _sim_source(spec: str) -> SimDepthSource:
+def sim_source(spec: str) -> SimDepthSource:
     """``sim:SCENARIO[:SENSOR]``: a scenario's sensor rendered faster than real time."""
     from openptrack_py.sim.depth_source import SimDepthSource
     from openptrack_py.sim.scenarios import build_scenario

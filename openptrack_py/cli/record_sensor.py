@@ -22,7 +22,8 @@ def add_parser(subparsers: Subparsers) -> None:
         "depth PNGs (plus colour and intensity when present), frames.csv and "
         "intrinsics.json, a folder that can be replayed as a source. SOURCE is a folder "
         "(our recordings, TUM RGB-D, or depth PNGs with intrinsics.json), a .pcd/.ply "
-        "cloud, a RealSense .bag, realsense[:SERIAL] or azure-kinect[:N]. A live device "
+        "cloud, a RealSense .bag, realsense[:SERIAL], azure-kinect[:N] or "
+        "sim:SCENARIO[:SENSOR] (a rendered simulation: a test recording). A live device "
         "records until --frames, --seconds or Ctrl-C. Exit status 2 when the source "
         "cannot be opened or recorded.",
     )
@@ -58,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
             return
 
     try:
-        source = open_source(args.source)
+        from openptrack_py.cli.detect import sim_source
+
+        source = open_source(args.source, extra={"sim": sim_source})
         try:
             count = record_folder(limited(source.frames()), args.outdir, max_frames=args.frames)
         finally:

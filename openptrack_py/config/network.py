@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from pydantic import Field, model_validator
 
 from openptrack_py.config.base import Name, StrictModel
@@ -43,6 +45,9 @@ class NetworkConfig(StrictModel):
         How sessions meet.
     sensors : list of SensorConfig
         Every sensor; ids must be unique.
+    calibration : Path, optional
+        The network's calibration file (:mod:`openptrack_py.calibration.files`): the pose
+        of every sensor it has an entry for (a sensor's own ``calibration`` wins).
     sim : SimConfig, optional
         Present when some sensors are simulated.
     tracker : TrackerConfig, optional
@@ -63,6 +68,7 @@ class NetworkConfig(StrictModel):
     site: Name = "default"
     zenoh: ZenohConfig = Field(default_factory=ZenohConfig)
     sensors: list[SensorConfig] = Field(default_factory=list)
+    calibration: Path | None = None
     sim: SimConfig | None = None
     tracker: TrackerConfig | None = None
     outputs: list[OutputConfig] = Field(default_factory=list)

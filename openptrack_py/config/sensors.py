@@ -66,7 +66,11 @@ class SensorConfig(StrictModel):
     pose : Pose, optional
         Pose in the world frame.
     calibration : Path, optional
-        Calibration file giving the pose (alternative to ``pose``).
+        Calibration file holding this sensor's entry (see
+        :mod:`openptrack_py.calibration.files`); overrides the network's ``calibration``.
+        A camera or recording sensor gives either ``pose`` or a calibration; a simulated
+        one may give both: ``pose`` is where the simulator places it, the calibration
+        what the pipeline believes.
     clock_offset_s : float
         Simulated constant offset of the sensor's clock.
     latency_s, latency_jitter_s : float
@@ -103,6 +107,9 @@ class SensorConfig(StrictModel):
 
     @model_validator(mode="after")
     def _pose_or_calibration(self) -> SensorConfig:
-        if self.pose is not None and self.calibration is not None:
-            raise ValueError("give either 'pose' or 'calibration', not both")
+        if self.source != "sim" and self.pose is not None and self.calibration is not None:
+            raise ValueError(
+                "give either 'pose' or 'calibration', not both (only a simulated sensor "
+                "takes both: its true placement and the calibration the pipeline uses)"
+            )
         return self

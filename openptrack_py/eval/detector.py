@@ -103,7 +103,7 @@ def match_frame(
     score.frames += 1
 
 
-MIXED_SCENARIOS = ("classroom", "installation", "uniforms", "reentry")
+MIXED_SCENARIOS = ("overhead", "classroom", "installation", "uniforms", "reentry")
 """Scenarios with children among the people: scored with the ``everyone`` preset."""
 
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 import functools
 import time
 
+from openptrack_py.calibration.files import network_calibration
 from openptrack_py.config import NetworkConfig
-from openptrack_py.errors import ConfigError
+from openptrack_py.errors import CalibrationError, ConfigError
 from openptrack_py.messages.codec import encode_detection_batch, encode_ground_truth
 from openptrack_py.runtime.node import Node
 from openptrack_py.sim.scenarios import Scenario, build_scenario
@@ -21,13 +22,20 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
     sensors' noise profile is ``sim.profile``, with identity embeddings if
     ``sim.embeddings``.
 
+    Sensors with a calibration entry (the network's ``calibration`` file or their own)
+    report through the calibrated pose, not their simulated pose error.
+
     Raises
     ------
     ConfigError
-        If the network has no ``sim`` section.
+        If the network has no ``sim`` section, or its calibration is unusable.
     """
     if cfg.sim is None:
         raise ConfigError("sim: the network file has no 'sim' section")
+    try:
+        calibration = network_calibration(cfg)
+    except CalibrationError as exc:
+        raise ConfigError(str(exc)) from None
     simulated = [s for s in cfg.sensors if s.source == "sim"]
     sensors = None if cfg.sim.use_scenario_sensors or not simulated else simulated
     return build_scenario(
@@ -37,6 +45,7 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
         sensors=sensors,
         profile=cfg.sim.profile,
         embeddings=cfg.sim.embeddings,
+        calibration=calibration,
     )
 
 

@@ -31,11 +31,12 @@ from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from openptrack_py.calibration.files import SensorCalibration
 from openptrack_py.config import Pose, SensorConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.sensor_types import SENSOR_TYPES
@@ -291,6 +292,27 @@ def _stress(seed: int, rng: np.random.Generator, people: int = 120) -> tuple:
     return room, sensors, director, 120.0
 
 
+OVERHEAD_SENSORS = (
+    # Ceiling sensors looking straight down over an entrance hall: the people-counting
+    # layout. At 2.9 m a Kinect v2 sees a 4.1 x 3.3 m patch of floor; the three patches
+    # overlap by about a metre.
+    ("top_a", 1.8, 2.0, 2.9, 0.0, 90.0),
+    ("top_b", 4.5, 2.0, 2.9, 0.0, 90.0),
+    ("top_c", 7.2, 2.0, 2.9, 0.0, 90.0, "realsense"),
+)
+
+
+def _overhead(seed: int, rng: np.random.Generator) -> tuple:
+    room = Room(9.0, 4.0, doors=((0.0, 2.0), (9.0, 2.0), (4.5, 4.0)))
+    sensors = [_sensor(*s) for s in OVERHEAD_SENSORS]
+    spots = [(2.0, 1.0), (4.5, 2.8), (7.0, 1.2), (3.2, 3.0), (6.0, 2.6)]
+
+    def director(r: np.random.Generator) -> Director:
+        return VisitorDirector(room, spots, 4.0, 6, 2, 0.1, r)
+
+    return room, sensors, director, 120.0
+
+
 _BUILDERS: dict[str, tuple[Callable[..., tuple], str]] = {
     "crowd": (_crowd, "7 people moving randomly 1-9 m from a sensor; 3 Kinect v2"),
     "distance": (_distance, "2 people walking out to 10 m from one sensor and back"),
@@ -303,6 +325,7 @@ _BUILDERS: dict[str, tuple[Callable[..., tuple], str]] = {
         "6 people who leave by a door, stay out 10-120 s and come back as themselves",
     ),
     "uniforms": (_uniforms, "the classroom with everyone in one of two school uniforms"),
+    "overhead": (_overhead, "people crossing an entrance hall under 3 ceiling sensors"),
 }
 SCENARIO_NAMES = tuple(_BUILDERS)
 _OPTION_MINIMUM = {"people": 0, "children": 1}  # an empty hall is fine, a class is not
@@ -344,6 +367,7 @@ def build_scenario(
     sensors: Sequence[SensorConfig] | None = None,
     profile: str | NoiseProfile = "ideal",
     embeddings: bool = False,
+    calibration: Mapping[str, SensorCalibration] | None = None,
     **options: int,
 ) -> Scenario:
     """Build a named scenario.
@@ -364,6 +388,9 @@ def build_scenario(
         in ``+embeddings`` (:func:`~openptrack_py.sim.profiles.resolve_profile`).
     embeddings : bool
         Turn the profile's simulated identity embeddings on (off leaves it as it is).
+    calibration : mapping of str to SensorCalibration, optional
+        Calibration entries by sensor id: those sensors report through the calibrated
+        pose and correct their stamps by the calibrated clock offset.
     **options
         Scenario parameters: ``people`` (crowd, stress, reentry), ``children``
         (classroom, uniforms).
@@ -389,7 +416,9 @@ def build_scenario(
     specs = []
     for cfg in simulated:
         rate = cfg.rate_hz or SENSOR_TYPES[cfg.type].rate_hz
-        specs.append(SensorSpec.from_config(cfg, phase_s=float(phase_rng.uniform(0, 1.0 / rate))))
+        phase = float(phase_rng.uniform(0, 1.0 / rate))
+        entry = None if calibration is None else calibration.get(cfg.id)
+        specs.append(SensorSpec.from_config(cfg, phase_s=phase, calibration=entry))
     specs = list(draw_sensor_faults(noise, specs, simulated, seed))
     decoys: tuple[Decoy, ...] = ()
     if noise.decoys_per_sensor > 0 and specs:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from openptrack_py.calibration.files import SensorCalibration
 from openptrack_py.config import Pose, PoseError, SensorConfig
 from openptrack_py.detection.appearance import signature_length
 from openptrack_py.errors import ConfigError
@@ -112,6 +113,10 @@ class SensorSpec:
         Time of the first frame after the scenario start.
     noise_override : SensorNoise, optional
         A noise model replacing the type's (see :attr:`noise`).
+    calibration : SensorCalibration, optional
+        The network's calibration entry for this sensor: detections are then reported
+        through its pose (not ``pose`` + ``pose_error``) and stamps corrected by its clock
+        offset, as a calibrated sensor's node does.
     """
 
     id: str
@@ -127,6 +132,12 @@ class SensorSpec:
     pose_error: PoseError = field(default_factory=PoseError)
     phase_s: float = 0.0
     noise_override: SensorNoise | None = None
+    calibration: SensorCalibration | None = None
+
+    @property
+    def clock_correction_s(self) -> float:
+        """What the sensor's node subtracts from its stamps: the calibrated clock offset."""
+        return 0.0 if self.calibration is None else self.calibration.clock_offset_s
 
     @property
     def noise(self) -> SensorNoise:
@@ -136,8 +147,15 @@ class SensorSpec:
         return SENSOR_NOISE[self.type.name]
 
     @classmethod
-    def from_config(cls, cfg: SensorConfig, phase_s: float = 0.0) -> SensorSpec:
+    def from_config(
+        cls,
+        cfg: SensorConfig,
+        phase_s: float = 0.0,
+        calibration: SensorCalibration | None = None,
+    ) -> SensorSpec:
         """Build from a network file's sensor entry, filling type defaults.
+
+        ``calibration`` is the sensor's entry in the network's calibration, if any.
 
         Raises
         ------
@@ -165,4 +183,5 @@ class SensorSpec:
             frame_drop_probability=cfg.frame_drop_probability,
             pose_error=cfg.pose_error,
             phase_s=phase_s,
+            calibration=calibration,
         )

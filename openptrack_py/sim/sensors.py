@@ -167,15 +167,20 @@ class SensorModel(SensorView):
         self.merge_distance_m = (
             p.merge_distance_m if merge_distance_m is None else merge_distance_m
         )
-        believed = spec.pose.model_copy(
-            update={
-                "x": spec.pose.x + spec.pose_error.dx,
-                "y": spec.pose.y + spec.pose_error.dy,
-                "yaw_deg": spec.pose.yaw_deg + spec.pose_error.dyaw_deg,
-            }
-        )
+        if spec.calibration is not None:
+            believed = spec.calibration.world_from_optical()
+        else:
+            believed = world_from_optical(
+                spec.pose.model_copy(
+                    update={
+                        "x": spec.pose.x + spec.pose_error.dx,
+                        "y": spec.pose.y + spec.pose_error.dy,
+                        "yaw_deg": spec.pose.yaw_deg + spec.pose_error.dyaw_deg,
+                    }
+                )
+            )
         # true world -> camera -> world as the sensor believes it to be placed
-        self.reported_from_world = world_from_optical(believed) @ self.camera_from_world
+        self.reported_from_world = believed @ self.camera_from_world
         self._centroid: CentroidError | None = None
         self._transients: TransientFalsePositives | None = None
         self._decoys: DecoySightings | None = None

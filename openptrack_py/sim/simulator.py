@@ -259,7 +259,7 @@ class Simulator:
             batch = DetectionBatch(
                 sensor_id=spec.id,
                 seq=k,
-                stamp=capture + spec.clock_offset_s,
+                stamp=capture + spec.clock_offset_s - spec.clock_correction_s,
                 frame_id="world",
                 detections=observation.detections,
             )

@@ -32,6 +32,10 @@ BODY_POINTS = np.array(
 HEAD = 0
 
 
+STEEP_PITCH_DEG = 45.0
+"""Above this tilt the field of view is not a wedge on the floor around the heading."""
+
+
 class SensorView:
     """Where one sensor looks and what it can see: field of view, range, line of sight.
 
@@ -91,6 +95,8 @@ class SensorView:
 
     def _in_wedge(self, pos: np.ndarray, radius: np.ndarray) -> np.ndarray:
         """Mask of floor discs that reach into the horizontal field of view."""
+        if self.spec.pose.pitch_deg > STEEP_PITCH_DEG:  # no horizontal wedge looking down
+            return np.ones(len(pos), dtype=bool)
         rel = pos - self.origin[:2]
         dist = np.maximum(np.linalg.norm(rel, axis=1), 1e-6)
         bearing = np.arctan2(rel[:, 1], rel[:, 0]) - math.radians(self.spec.pose.yaw_deg)
