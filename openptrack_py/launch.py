@@ -26,7 +26,13 @@ from pathlib import Path
 from typing import IO
 
 from openptrack_py.config import NetworkConfig
-from openptrack_py.config.network import RECORDER, SIM, TRACKER, detector_node_name
+from openptrack_py.config.network import (
+    CALIBRATION,
+    RECORDER,
+    SIM,
+    TRACKER,
+    detector_node_name,
+)
 
 LOCAL_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 
@@ -117,6 +123,9 @@ def plan_nodes(
             specs.append(NodeSpec(name, "openptrack_py.nodes.detector", args, finite=finite))
     if cfg.tracker is not None and host_matches(cfg.tracker.host, host):
         specs.append(NodeSpec(TRACKER, "openptrack_py.nodes.tracker", common))
+    master = cfg.tracker.host if cfg.tracker is not None else "localhost"
+    if cfg.calibrated and host_matches(master, host):
+        specs.append(NodeSpec(CALIBRATION, "openptrack_py.nodes.calibration", common))
     for out in cfg.outputs:
         if host_matches(out.host, host):
             specs.append(

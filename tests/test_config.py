@@ -93,8 +93,8 @@ def test_no_file_gives_defaults() -> None:
         ),
         (
             "sensros=[]",
-            "sensros: unknown key; did you mean 'sensors'? (allowed: detector, outputs, "
-            "recorder, security, sensors, sim, site, stats_interval_s, tracker, zenoh)",
+            "sensros: unknown key; did you mean 'sensors'? (allowed: calibration, detector, "
+            "outputs, recorder, security, sensors, sim, site, stats_interval_s, tracker, zenoh)",
         ),
         (
             "sim.sceanrio=crowd",
@@ -274,11 +274,14 @@ def test_sim_sensor_without_sim_section() -> None:
 
 
 def test_pose_and_calibration_together() -> None:
-    (line,) = _problem_lines(_error(DEMO, ["sensors.k2_c.calibration=calib/k2_c.yaml"]))
+    camera = ["sensors.k2_c.source=camera", "sensors.k2_c.input=realsense"]
+    (line,) = _problem_lines(_error(DEMO, [*camera, "sensors.k2_c.calibration=c.yaml"]))
     assert line.startswith("sensors.2: give either 'pose' or 'calibration', not both"), line
-    # Calibration alone is fine.
+    # Calibration alone is fine; a simulated sensor takes both (placement, calibration).
     config = load_network(DEMO, ["sensors.k2_c.pose=null", "sensors.k2_c.calibration=c.yaml"])
     assert config.sensors[2].calibration == Path("c.yaml")
+    config = load_network(DEMO, ["sensors.k2_c.calibration=c.yaml"])
+    assert config.sensors[2].pose is not None and config.calibrated
 
 
 def test_every_problem_is_reported_one_per_line(tmp_path: Path) -> None:

@@ -11,7 +11,8 @@ package above it; packages on one layer do not import each other):
 4. ``security`` (a secured session's settings, from the network file and the keys)
 5. ``runtime``
 6. ``detection``, ``tracking``
-7. ``output``, ``recorder``
+7. ``output``, ``recorder``, ``calibration`` (the calibration file, its service on the
+   bus, the solvers)
 8. ``sim``
 9. ``eval``
 10. ``launch``, ``nodes`` (the node entry points, shipped as ``openptrack_py.nodes``)
@@ -44,6 +45,7 @@ LAYERS: dict[str, int] = {
     "tracking": 6,
     "output": 7,
     "recorder": 7,
+    "calibration": 7,
     "sim": 8,
     "eval": 9,
     "launch": 10,

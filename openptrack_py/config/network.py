@@ -17,6 +17,8 @@ from openptrack_py.config.tracker import TrackerConfig
 from openptrack_py.config.zenoh import ZenohConfig
 from openptrack_py.errors import ConfigError
 
+CALIBRATION = "calibration"
+"""Name (and identity) of the node that serves the calibration."""
 LAUNCHER = "launcher"
 """Name (and identity) of ``openptrack launch``: its hub session and status board."""
 OPERATOR = "operator"
@@ -24,7 +26,7 @@ OPERATOR = "operator"
 RECORDER = "record"
 SIM = "sim"
 TRACKER = "tracker"
-RESERVED_NODE_NAMES = (LAUNCHER, OPERATOR, RECORDER, SIM, TRACKER)
+RESERVED_NODE_NAMES = (CALIBRATION, LAUNCHER, OPERATOR, RECORDER, SIM, TRACKER)
 """Names of nodes and tools that an output node may not take (its stats, its certificate)."""
 DETECTOR_PREFIX = "detector_"
 
@@ -129,6 +131,11 @@ class NetworkConfig(StrictModel):
                 f"sensors {', '.join(simulated)} have source 'sim' but there is no 'sim' section"
             )
         return self
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether the network or any sensor names a calibration file."""
+        return self.calibration is not None or any(s.calibration for s in self.sensors)
 
     def output(self, name: str) -> OutputConfig:
         """Return the output node with this name.

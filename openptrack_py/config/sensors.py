@@ -43,6 +43,16 @@ class PoseError(StrictModel):
     dy: float = Field(0.0, ge=-5.0, le=5.0)
     dyaw_deg: float = Field(0.0, ge=-45.0, le=45.0)
 
+    def believed(self, pose: Pose) -> Pose:
+        """The pose a sensor truly at ``pose`` believes it has."""
+        return pose.model_copy(
+            update={
+                "x": pose.x + self.dx,
+                "y": pose.y + self.dy,
+                "yaw_deg": pose.yaw_deg + self.dyaw_deg,
+            }
+        )
+
 
 class SensorConfig(StrictModel):
     """One depth sensor of the network.

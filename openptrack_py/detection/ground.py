@@ -361,6 +361,15 @@ class GroundTracker:
         self._since_estimate = 0
         self._recent: deque[np.ndarray] = deque(maxlen=config.accumulate_frames)
 
+    def set_calibrated(self, calibrated: GroundPlane) -> None:
+        """A new calibrated floor (the sensor's pose changed); a ``fixed`` plane stays."""
+        if self.config.plane is not None:
+            return
+        self.calibrated = calibrated
+        if self.config.mode == "calibration" or (self.plane and self.plane.source != "auto"):
+            self.plane = calibrated
+        self.estimates = 0  # look again, now with the new expected up
+
     STEEP_TILT_DEG = 50.0
     """With the tilt unknown, the second expected tilt tried (see :func:`choose_floor`)."""
 

@@ -248,6 +248,16 @@ class PeopleDetector:
             self._hog = HogVerifier()
         self._rays: _Rays | None = None
 
+    def set_pose(self, world_from_camera: np.ndarray) -> None:
+        """Use a new sensor pose from the next frame on (a calibration update).
+
+        The floor implied by the pose becomes the calibrated floor; a ``fixed`` plane
+        from the configuration stays.
+        """
+        self.world_from_camera = np.asarray(world_from_camera, dtype=float)
+        self.frame_id = "world"
+        self.ground.set_calibrated(GroundPlane.from_world_pose(self.world_from_camera))
+
     # ------------------------------------------------------------------ steps
 
     def _cloud(self, frame: Frame) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:

@@ -80,15 +80,30 @@ class DetectorService:
         Detector settings.
     source : Source
         Where frames come from.
+    calibration : (ndarray, float), optional
+        The sensor's calibrated pose (4x4 ``world_from_optical``, instead of
+        ``sensor.pose``) and clock offset (subtracted from the frames' stamps); updates
+        are applied with :meth:`apply_calibration`.
     """
 
     def __init__(
-        self, node: Node, sensor: SensorConfig, config: DetectorConfig, source: Source
+        self,
+        node: Node,
+        sensor: SensorConfig,
+        config: DetectorConfig,
+        source: Source,
+        calibration: tuple[np.ndarray, float] | None = None,
     ) -> None:
         self.node = node
         self.sensor = sensor
         self.source = source
-        pose = world_from_optical(sensor.pose) if sensor.pose is not None else None
+        self.clock_offset_s = 0.0 if calibration is None else calibration[1]
+        if calibration is not None:
+            pose = calibration[0]
+        elif sensor.pose is not None:  # a rendered sensor's simulated error is applied too
+            pose = world_from_optical(sensor.pose_error.believed(sensor.pose))
+        else:
+            pose = None
         if pose is None:
             node.log.warning(
                 "no pose: detections are reported in the sensor's floor frame",
@@ -109,6 +124,12 @@ class DetectorService:
         self._grab_done = threading.Event()
         self.seq = 0
 
+    def apply_calibration(self, world_from_camera: np.ndarray, clock_offset_s: float) -> None:
+        """Use a new calibrated pose and clock offset from the next frame on."""
+        self.detector.set_pose(world_from_camera)
+        self.clock_offset_s = clock_offset_s
+        self.node.log.info("calibration applied", extra={"fields": {"sensor": self.sensor.id}})
+
     def _grab(self) -> None:
         try:
             for frame in self.source.frames():
@@ -127,7 +148,7 @@ class DetectorService:
         result = self.detector.detect(frame)
         for stage, seconds in result.timings.items():
             counters.add_timing(stage, seconds)
-        batch = result.to_batch(self.sensor.id, self.seq, frame.stamp)
+        batch = result.to_batch(self.sensor.id, self.seq, frame.stamp - self.clock_offset_s)
         self.seq += 1
         self._publisher.put(encode_detection_batch(batch))
         counters.inc("batches")

@@ -13,8 +13,10 @@ not receive is dropped by Zenoh before it reaches our code. The list:
 * a sensor's detector may put that sensor's detections only, the simulator those of
   the simulated sensors and the ground truth; the tracker the tracks; an output node
   its smoothed tracks; an operator (``security.operators``) configuration requests;
-* everything else is refused (``default_permission: deny``), queries and replies
-  included (no node serves any yet), so a peer without a certificate of the site's
+* the calibration node may put calibration updates, declare the calibration queryable
+  and reply to it; every member may ask it;
+* everything else is refused (``default_permission: deny``), other queries and replies
+  included, so a peer without a certificate of the site's
   authority cannot even connect, and one with a certificate can do only what its name
   allows.
 
@@ -28,6 +30,7 @@ from typing import Any
 
 from openptrack_py.config import NetworkConfig
 from openptrack_py.config.network import (
+    CALIBRATION,
     LAUNCHER,
     OPERATOR,
     RECORDER,
@@ -63,6 +66,8 @@ def put_keys(network: NetworkConfig) -> dict[str, list[str]]:
             allowed[detector_node_name(sensor.id)] = [keys.detections(sensor.id)]
     if network.tracker is not None:
         allowed[TRACKER] = [keys.tracks]
+    if network.calibrated:
+        allowed[CALIBRATION] = [keys.calibration("*")]
     for out in network.outputs:
         allowed[out.name] = [keys.tracks_smoothed]
     if network.recorder is not None:
@@ -97,12 +102,28 @@ def access_control(network: NetworkConfig) -> dict[str, Any]:
             "id": "send",
             "permission": "allow",
             "flows": ["egress"],
-            "messages": ["put", "delete", "liveliness_token"],
+            "messages": [
+                "put",
+                "delete",
+                "liveliness_token",
+                "query",
+                "declare_queryable",
+                "reply",
+            ],
             "key_exprs": [everything],
+        },
+        {
+            "id": "ask-calibration",
+            "permission": "allow",
+            "flows": ["ingress"],
+            "messages": ["query"],
+            "key_exprs": [keys.calibration("*")],
         },
     ]
     subjects: list[dict[str, Any]] = [{"id": MEMBER, "cert_common_names": list(allowed)}]
-    policies: list[dict[str, Any]] = [{"rules": ["read", "send"], "subjects": [MEMBER]}]
+    policies: list[dict[str, Any]] = [
+        {"rules": ["read", "send", "ask-calibration"], "subjects": [MEMBER]}
+    ]
     for index, (name, put) in enumerate(allowed.items()):
         rule, token, subject = f"put-{index}", f"alive-{index}", f"id-{index}"
         rules.append(
@@ -125,6 +146,18 @@ def access_control(network: NetworkConfig) -> dict[str, Any]:
         )
         subjects.append({"id": subject, "cert_common_names": [name]})
         policies.append({"rules": [rule, token], "subjects": [subject]})
+    if CALIBRATION in allowed:
+        rules.append(
+            {
+                "id": "serve-calibration",
+                "permission": "allow",
+                "flows": ["ingress"],
+                "messages": ["declare_queryable", "reply"],
+                "key_exprs": [keys.calibration("*")],
+            }
+        )
+        subjects.append({"id": "id-serve", "cert_common_names": [CALIBRATION]})
+        policies.append({"rules": ["serve-calibration"], "subjects": ["id-serve"]})
     return {
         "enabled": True,
         "default_permission": "deny",

@@ -131,7 +131,7 @@ def sim_source_for_sensor(cfg: NetworkConfig, sensor: SensorConfig) -> SimDepthS
     ConfigError
         If the network has no ``sim`` section or the sensor is not simulated.
     """
-    scenario = scenario_from_network(cfg)
+    scenario = scenario_from_network(cfg, calibrated=False)  # the renderer uses true poses
     assert cfg.sim is not None  # scenario_from_network checked it
     start = cfg.sim.start_time if cfg.sim.start_time is not None else time.time()
     return SimDepthSource(

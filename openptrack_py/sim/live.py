@@ -14,7 +14,7 @@ from openptrack_py.sim.scenarios import Scenario, build_scenario
 from openptrack_py.sim.simulator import SensorFrame, Simulator
 
 
-def scenario_from_network(cfg: NetworkConfig) -> Scenario:
+def scenario_from_network(cfg: NetworkConfig, *, calibrated: bool = True) -> Scenario:
     """The scenario a network file asks for, with its simulated sensors.
 
     The network's ``source: sim`` sensors replace the scenario's own placement unless
@@ -23,7 +23,8 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
     ``sim.embeddings``.
 
     Sensors with a calibration entry (the network's ``calibration`` file or their own)
-    report through the calibrated pose, not their simulated pose error.
+    report through the calibrated pose, not their simulated pose error; ``calibrated``
+    off leaves the calibration out (rendering needs only the true poses).
 
     Raises
     ------
@@ -33,7 +34,7 @@ def scenario_from_network(cfg: NetworkConfig) -> Scenario:
     if cfg.sim is None:
         raise ConfigError("sim: the network file has no 'sim' section")
     try:
-        calibration = network_calibration(cfg)
+        calibration = network_calibration(cfg) if calibrated else None
     except CalibrationError as exc:
         raise ConfigError(str(exc)) from None
     simulated = [s for s in cfg.sensors if s.source == "sim"]

@@ -170,15 +170,7 @@ class SensorModel(SensorView):
         if spec.calibration is not None:
             believed = spec.calibration.world_from_optical()
         else:
-            believed = world_from_optical(
-                spec.pose.model_copy(
-                    update={
-                        "x": spec.pose.x + spec.pose_error.dx,
-                        "y": spec.pose.y + spec.pose_error.dy,
-                        "yaw_deg": spec.pose.yaw_deg + spec.pose_error.dyaw_deg,
-                    }
-                )
-            )
+            believed = world_from_optical(spec.pose_error.believed(spec.pose))
         # true world -> camera -> world as the sensor believes it to be placed
         self.reported_from_world = believed @ self.camera_from_world
         self._centroid: CentroidError | None = None
