@@ -117,6 +117,15 @@ class HeadClusterer:
     """Depth of the cap below a peak that must stay as small as a head."""
     CAP_REACH_M = 0.3
     """Farthest a head's cap may reach from its peak."""
+    CROWN_CELLS_FACTOR = 1.5
+    """A cap of more cells than this many head crowns must show shoulders around it."""
+    CAP_LINE_M = 0.3
+    """A cap longer than this ..."""
+    CAP_ELONGATION = 2.5
+    """... and this many times longer than wide is a line (a board's top edge)."""
+    LINE_MIN_CELLS = 7
+    """Fewer cap cells are not judged a line: a low-resolution sensor's single image row
+    across a far head makes a short line of a few cells."""
     LEVEL_CELLS_FACTOR = 3.0
     """Cells at a peak's level within twice the cap reach, in head crowns (0.12 m radius)."""
     PROMINENCE_M = 0.15
@@ -270,12 +279,31 @@ class HeadClusterer:
         prominence = self.FAR_PROMINENCE_M if far else self.PROMINENCE_M
         return bool(saddle < top[other] - prominence)
 
+    def _cap_shape(self, ci: np.ndarray, cj: np.ndarray) -> str:
+        """``line``, ``large`` or ``crown``: what the cap's cells look like.
+
+        A line (of at least :attr:`LINE_MIN_CELLS` cells) has a long axis over
+        :attr:`CAP_LINE_M` and :attr:`CAP_ELONGATION` times its short one (the top edge
+        of a board, a shelf's front seen between people); a large cap has more cells
+        than :attr:`CROWN_CELLS_FACTOR` head crowns (0.12 m radius); anything else is
+        the size and shape of a head's crown.
+        """
+        if len(ci) >= self.LINE_MIN_CELLS:
+            cov = np.cov(np.vstack([ci, cj]).astype(float))
+            small, large = np.sqrt(12 * np.maximum(np.linalg.eigvalsh(cov), 0)) + 1
+            if large * self.cell_m > self.CAP_LINE_M and large > self.CAP_ELONGATION * small:
+                return "line"
+        if len(ci) > self.CROWN_CELLS_FACTOR * np.pi * (0.12 / self.cell_m) ** 2:
+            return "large"
+        return "crown"
+
     def _is_head(self, top: np.ndarray, i: int, j: int) -> bool:
         """Whether a height peak is a head's crown rather than a flat or long top.
 
         The cap of a head — the connected cells within :attr:`CAP_DEPTH_M` of the peak —
         is about as wide as a head; the cap of a wall, a table or a cabinet runs on. A
-        cap up to :attr:`CAP_REACH_M` from the peak is a head; up to twice that (depth
+        crown-like cap (:meth:`_cap_shape`) up to :attr:`CAP_REACH_M` from the peak is a
+        head, a line never is; a larger one, or one up to twice that far (depth
         noise blurs far heads into their shoulders), a head only if the ring 0.15-0.3 m
         around the peak lies, by its median, :attr:`CAP_DEPTH_M` lower (shoulders);
         anything larger is not a head; so is a peak with many cells at its level around
@@ -297,7 +325,10 @@ class HeadClusterer:
         level = (np.abs(window - peak) <= self.CAP_DEPTH_M) & (d2 <= 4 * reach * reach)
         if np.count_nonzero(level) > self.LEVEL_CELLS_FACTOR * np.pi * (0.12 / self.cell_m) ** 2:
             return False
-        if far <= reach * reach:
+        shape = self._cap_shape(ci, cj)
+        if shape == "line":
+            return False
+        if far <= reach * reach and shape == "crown":
             return True
         if far > 4 * reach * reach:
             return False
