@@ -157,7 +157,8 @@ def _segment_crosses_box(a: np.ndarray, b: np.ndarray, o: Obstacle) -> bool:
 
 
 SHORT = {"crowd": 3.0, "distance": 3.0, "occlusions": 3.0, "classroom": 3.0,
-         "installation": 3.0, "stress": 0.5, "reentry": 3.0, "uniforms": 3.0, "overhead": 3.0, "corridor": 3.0}  # fmt: skip
+         "installation": 3.0, "stress": 0.5, "reentry": 3.0, "uniforms": 3.0, "overhead": 3.0,
+         "corridor": 3.0}  # fmt: skip
 
 
 @pytest.mark.parametrize("name", SCENARIO_NAMES, ids=list(SCENARIO_NAMES))
