@@ -14,7 +14,7 @@ from tests.conftest import ROOT, python_env
 
 SUBCOMMANDS = [
     "launch", "node", "status", "echo", "config", "roster", "eval", "scenarios", "show-config",
-    "record-sensor", "detect", "eval-detector", "certs",
+    "record-sensor", "detect", "eval-detector", "calibrate", "certs",
 ]  # fmt: skip
 
 
@@ -59,7 +59,7 @@ def test_every_node_has_help(node: str) -> None:
 def test_unknown_node_lists_the_available_ones() -> None:
     result = _cli("node", "tracker-of-dreams")
     assert result.returncode == 2
-    available = "detector, output, record, sim, tracker"
+    available = "calibration, detector, output, record, sim, tracker"
     assert f"unknown node 'tracker-of-dreams' (available: {available})" in result.stderr
 
 
@@ -97,7 +97,7 @@ def test_scenarios_lists_every_scenario() -> None:
     names = [line.split()[0] for line in result.stdout.splitlines()]
     assert names == [
         "crowd", "distance", "occlusions", "classroom", "installation", "stress", "reentry",
-        "uniforms",
+        "uniforms", "overhead", "corridor",
     ]  # fmt: skip
 
 

@@ -28,6 +28,7 @@ from collections.abc import Sequence
 
 from openptrack_py import __version__
 from openptrack_py.cli import (
+    calibrate,
     certs,
     configure,
     detect,
@@ -62,6 +63,7 @@ COMMANDS = (
     record_sensor,
     detect,
     eval_detector,
+    calibrate,
     certs,
 )
 """The subcommand modules, in the order ``openptrack --help`` lists them."""

@@ -28,6 +28,7 @@ edges.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,6 +125,26 @@ def _hsv_to_rgb(h_deg: np.ndarray, s: np.ndarray | float, v: np.ndarray | float)
         m = sector == k
         rgb[m] = np.stack([r[m], g[m], b[m]], axis=-1)
     return rgb + (v - c)[..., None]
+
+
+def image_box(cam: np.ndarray, k: Intrinsics, pad: int = 0) -> tuple[int, int, int, int] | None:
+    """Pixel box ``(u0, u1, v0, v1)`` covering optical-frame points; None when out of view.
+
+    The whole image when some point is at or behind the camera; ``pad`` more pixels on
+    every side.
+    """
+    z = cam[:, 2]
+    if z.max() <= 0.05:
+        return None
+    if z.min() <= 0.05:
+        return 0, k.width, 0, k.height
+    u = k.fx * cam[:, 0] / z + k.cx
+    v = k.fy * cam[:, 1] / z + k.cy
+    u0, u1 = max(math.floor(u.min()) - pad, 0), min(math.floor(u.max()) + 2 + pad, k.width)
+    v0, v1 = max(math.floor(v.min()) - pad, 0), min(math.floor(v.max()) + 2 + pad, k.height)
+    if u0 >= u1 or v0 >= v1:
+        return None
+    return u0, u1, v0, v1
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -340,21 +361,8 @@ class DepthRenderer:
         self, centre: np.ndarray, axes: np.ndarray, radii: np.ndarray
     ) -> tuple[int, int, int, int] | None:
         """Pixel box ``(u0, u1, v0, v1)`` covering an ellipsoid; None when out of view."""
-        k = self.intrinsics
         corners = centre + (_CORNER_SIGNS * radii) @ axes.T
-        cam = apply(self.camera_from_world, corners)
-        z = cam[:, 2]
-        if z.max() <= 0.05:
-            return None
-        if z.min() <= 0.05:
-            return 0, k.width, 0, k.height
-        u = k.fx * cam[:, 0] / z + k.cx
-        v = k.fy * cam[:, 1] / z + k.cy
-        u0, u1 = max(int(u.min()), 0), min(int(u.max()) + 2, k.width)
-        v0, v1 = max(int(v.min()), 0), min(int(v.max()) + 2, k.height)
-        if u0 >= u1 or v0 >= v1:
-            return None
-        return u0, u1, v0, v1
+        return image_box(apply(self.camera_from_world, corners), self.intrinsics)
 
     # ------------------------------------------------------------------- render
 

@@ -1,0 +1,242 @@
+"""``openptrack calibrate``: place every sensor in one world frame, and check the result.
+
+Subcommands:
+
+``checkerboard NETWORK --sim``
+    The checkerboard procedure (Munaro et al., OpenPTrack, §4) on the network's
+    simulated sensors: a board moved through the room, corners found in each sensor's
+    colour or infrared image, every pose solved jointly. Prints, per sensor, the views,
+    the reprojection error and the error against the simulator's true pose.
+``walk NETWORK --sim``
+    Calibration with no checkerboard from one person walking (poses on the floor and
+    clock offsets), or ``--refine`` the network's current calibration from a walk.
+``show FILE``
+    Validate a calibration file and print its poses.
+
+``--output FILE`` writes the result as a calibration file; ``--apply`` writes it into the
+network's own calibration file (kept atomically: the running ``calibration`` node
+publishes the change and every detector applies it). Exit status 2 for a refused input
+(a board never seen, too few shared views, a walk that covers too little, an invalid
+file), with one message naming what is wrong; nothing is written then.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from openptrack_py.cli.common import EXIT_CONFIG, print_rows
+
+if TYPE_CHECKING:
+    from openptrack_py.calibration.files import SensorCalibration
+    from openptrack_py.cli.common import Subparsers
+    from openptrack_py.config import NetworkConfig
+
+
+def add_parser(subparsers: Subparsers) -> None:
+    """Register ``calibrate``, its subcommands and their arguments."""
+    p = subparsers.add_parser(
+        "calibrate",
+        help="calibrate the sensors (checkerboard, walking person) or check a calibration",
+        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = p.add_subparsers(dest="method", required=True)
+    board = sub.add_parser("checkerboard", help="checkerboard calibration")
+    _common(board)
+    board.add_argument("--placements", type=int, default=30, help="board placements (sim)")
+    board.add_argument("--intrinsics", action="store_true", help="also estimate intrinsics")
+    board.set_defaults(func=run_checkerboard)
+    walk = sub.add_parser("walk", help="calibration from one person walking")
+    _common(walk)
+    walk.add_argument("--seconds", type=float, default=60.0, help="length of the walk (sim)")
+    walk.add_argument("--refine", action="store_true", help="refine the network's current poses")
+    walk.add_argument("--plot", type=Path, help="before/after top view (PNG)")
+    walk.set_defaults(func=run_walk)
+    show = sub.add_parser("show", help="validate a calibration file and print it")
+    show.add_argument("file", type=Path)
+    show.add_argument("-c", "--config", help="network file: also check the sensor ids")
+    show.add_argument("--format", choices=("table", "json", "markdown"), default="table")
+    show.set_defaults(func=run_show)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("config", help="network file (or a preset name such as 'demo')")
+    p.add_argument("--sim", action="store_true", help="run on the network's simulation")
+    p.add_argument("--seed", type=int, default=0, help="simulation seed")
+    p.add_argument("--output", type=Path, help="write the result as a calibration file")
+    p.add_argument(
+        "--apply", action="store_true", help="write it into the network's calibration file"
+    )
+    p.add_argument("--format", choices=("table", "json", "markdown"), default="table")
+
+
+def _network(args: argparse.Namespace) -> NetworkConfig:
+    from openptrack_py.config import load_network
+    from openptrack_py.runtime.args import resolve_config_path
+
+    return load_network(resolve_config_path(args.config))
+
+
+def _fail(text: object) -> int:
+    print(f"openptrack calibrate: {text}", file=sys.stderr)
+    return EXIT_CONFIG
+
+
+def _target(args: argparse.Namespace, network: NetworkConfig) -> Path | None:
+    """Where ``--output``/``--apply`` ask to write (checked before any work is done)."""
+    if not args.apply:
+        return args.output
+    if network.calibration is None:
+        raise ValueError(
+            "--apply: the network names no 'calibration' file (add one, or use --output)"
+        )
+    return Path(network.calibration)
+
+
+def _write(args: argparse.Namespace, network: NetworkConfig, entries: dict) -> str | None:
+    """Write ``entries`` where ``--output``/``--apply`` ask; the path written, if any."""
+    from openptrack_py.calibration.files import CalibrationFile, load_calibration, save_calibration
+
+    target = _target(args, network)
+    if target is None:
+        return None
+    base = load_calibration(target) if target.exists() else CalibrationFile()
+    save_calibration(target, base.replaced(entries))
+    return str(target)
+
+
+def _network_for_writing(args: argparse.Namespace) -> NetworkConfig:
+    """The network, once ``--apply`` is known to have somewhere to write."""
+    network = _network(args)
+    _target(args, network)
+    return network
+
+
+def _sim_sensors(network: NetworkConfig) -> list[Any]:
+    simulated = [s for s in network.sensors if s.source == "sim" and s.pose is not None]
+    if len(simulated) < 2:
+        raise ValueError("--sim needs at least two simulated sensors with a pose")
+    return simulated
+
+
+def run_checkerboard(args: argparse.Namespace) -> int:
+    """Calibrate by checkerboard; print per-sensor figures."""
+    from openptrack_py.errors import CalibrationError, ConfigError
+
+    if not args.sim:
+        return _fail(
+            "checkerboard: only --sim is available from the command line; on real "
+            "sensors call openptrack_py.calibration.extrinsics.calibrate_extrinsics on "
+            "recorded views (see docs/calibration.md)"
+        )
+    try:
+        network = _network_for_writing(args)
+        result = _checkerboard_sim(network, args)
+        entries = result.calibration.entries()
+        written = _write(args, network, entries)
+    except (CalibrationError, ConfigError, ValueError) as exc:
+        return _fail(exc)
+    summary = result.to_dict()
+    report = summary["report"]
+    rows = [
+        {
+            "sensor": sid,
+            "views": s["views"],
+            "rms_px": round(report["rms_px"].get(sid, float("nan")), 3),
+            "error_cm": round(s["translation_error_cm"], 2),
+            "error_deg": round(s["rotation_error_deg"], 3),
+        }
+        for sid, s in summary["sensors"].items()
+    ]
+    print_rows(rows, ["sensor", "views", "rms_px", "error_cm", "error_deg"], args.format)
+    if written:
+        print(f"wrote {written}", file=sys.stderr)
+    return 0
+
+
+def _checkerboard_sim(network: NetworkConfig, args: argparse.Namespace) -> Any:
+    from openptrack_py.calibration.progress import CalibrationProgress
+    from openptrack_py.eval.checkerboard import SimSensor, simulate_checkerboard_calibration
+    from openptrack_py.sensor_types import SENSOR_TYPES
+    from openptrack_py.sim.live import scenario_from_network
+
+    sensors = [SimSensor.from_config(s) for s in _sim_sensors(network)]
+    room = scenario_from_network(network, calibrated=False).room
+    sizes = {s.id: (SENSOR_TYPES[s.type].width, SENSOR_TYPES[s.type].height) for s in sensors}
+    progress = _TerminalProgress(CalibrationProgress(sizes))
+    return simulate_checkerboard_calibration(
+        sensors,
+        room,
+        placements=args.placements,
+        seed=args.seed,
+        estimate_intrinsics=args.intrinsics,
+        progress=progress,
+    )
+
+
+class _TerminalProgress:
+    """Shows which sensors see the board, views per pair and coverage on one stderr line."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self._tty = sys.stderr.isatty()
+
+    def update(self, stamp: float, found: dict) -> Any:
+        snap = self.inner.update(stamp, found)
+        seeing = ",".join(sorted(snap.seeing)) or "-"
+        pairs = " ".join(f"{a}+{b}:{n}" for (a, b), n in sorted(snap.pair_views.items()))
+        cover = " ".join(f"{s}:{c:.0%}" for s, c in sorted(snap.coverage.items()))
+        line = f"board seen by {seeing} | pairs {pairs} | coverage {cover}"
+        print(("\r" if self._tty else "") + line[:200], end="" if self._tty else "\n",
+              file=sys.stderr, flush=True)  # fmt: skip
+        return snap
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+
+def run_walk(args: argparse.Namespace) -> int:
+    """Calibrate (or refine) from one person walking; print per-sensor figures."""
+    from openptrack_py.cli.calibrate_walk import walk
+
+    return walk(args, _network_for_writing, _write, _fail)
+
+
+def _entry_row(sensor_id: str, entry: SensorCalibration) -> dict[str, Any]:
+    pose = entry.as_pose()
+    return {
+        "sensor": sensor_id,
+        "x": round(pose.x, 4),
+        "y": round(pose.y, 4),
+        "z": round(pose.z, 4),
+        "yaw_deg": round(pose.yaw_deg, 3),
+        "pitch_deg": round(pose.pitch_deg, 3),
+        "roll_deg": round(pose.roll_deg, 3),
+        "clock_offset_s": entry.clock_offset_s,
+        "method": entry.method,
+        "date": entry.date.isoformat() if entry.date else "",
+    }
+
+
+def run_show(args: argparse.Namespace) -> int:
+    """Validate a calibration file (and its sensor ids) and print it."""
+    from openptrack_py.calibration.files import load_calibration, network_calibration
+    from openptrack_py.errors import CalibrationError, ConfigError
+
+    try:
+        calibration = load_calibration(args.file)
+        if args.config:
+            from openptrack_py.config import load_network
+            from openptrack_py.runtime.args import resolve_config_path
+
+            network = load_network(resolve_config_path(args.config))
+            network_calibration(network.model_copy(update={"calibration": args.file}))
+    except (CalibrationError, ConfigError) as exc:
+        return _fail(exc)
+    rows = [_entry_row(sid, e) for sid, e in calibration.sensors.items()]
+    columns = ["sensor", "x", "y", "z", "yaw_deg", "pitch_deg", "roll_deg"]
+    print_rows(rows, [*columns, "clock_offset_s", "method"], args.format)
+    return 0

@@ -1,0 +1,384 @@
+"""The checkerboard calibration run end to end on simulated sensors.
+
+What ``openptrack calibrate checkerboard --sim`` runs: a scripted board session
+(:func:`openptrack_py.sim.board_session.board_session`: the board held at varying tilts where
+pairs of sensors see it, then laid on the floor) is rendered through every sensor at its
+true pose and real resolution (:class:`~openptrack_py.sim.render.DepthRenderer` plus
+:func:`~openptrack_py.sim.boards.draw_board`, with the sensor's depth and image noise and
+the person holding the board), the board's corners are detected in each frame as on a
+real sensor (:func:`~openptrack_py.calibration.checkerboard.detect_board`, colour or
+infrared per type), and the poses are solved
+(:func:`~openptrack_py.calibration.extrinsics.calibrate_extrinsics`). The estimates are
+then compared with the true poses.
+
+The world frame is set by the floor board at its true pose, as a user who measured where
+the board lay would give it, so the estimates are in the room's coordinates.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from openptrack_py.calibration.checkerboard import (
+    BoardView,
+    Checkerboard,
+    average_views,
+    board_pose,
+    detect_board,
+)
+from openptrack_py.calibration.extrinsics import ExtrinsicCalibration, calibrate_extrinsics
+from openptrack_py.calibration.intrinsics import calibrate_intrinsics
+from openptrack_py.calibration.observations import BoardObservation
+from openptrack_py.calibration.progress import CalibrationProgress
+from openptrack_py.config import Pose, SensorConfig
+from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.errors import CalibrationError, ConfigError
+from openptrack_py.geometry import world_from_optical
+from openptrack_py.sensor_types import SENSOR_TYPES
+from openptrack_py.sim.board_session import (
+    BoardPlacement,
+    BoardSession,
+    board_session,
+    holder_snapshot,
+)
+from openptrack_py.sim.boards import SIM_BOARD, draw_board
+from openptrack_py.sim.render import DepthRenderer
+from openptrack_py.sim.sensor_spec import SensorSpec
+from openptrack_py.sim.world import Room
+
+
+@dataclass(frozen=True)
+class SimSensor:
+    """A simulated sensor to calibrate.
+
+    Parameters
+    ----------
+    id : str
+        Sensor id.
+    type : str
+        ``kinect1``, ``kinect2``, ``realsense`` or ``sr4500``.
+    pose : Pose
+        True pose in the world.
+    """
+
+    id: str
+    type: str
+    pose: Pose
+
+    @classmethod
+    def from_config(cls, cfg: SensorConfig) -> SimSensor:
+        """From a network file's sensor entry.
+
+        Raises
+        ------
+        ConfigError
+            If the entry has no pose.
+        """
+        if cfg.pose is None:
+            raise ConfigError(f"sensors.{cfg.id}.pose: a simulated sensor needs a pose")
+        return cls(cfg.id, cfg.type, cfg.pose)
+
+    def spec(self) -> SensorSpec:
+        """The simulator's description of this sensor.
+
+        Raises
+        ------
+        ConfigError
+            For an unknown sensor type.
+        """
+        if self.type not in SENSOR_TYPES:
+            raise ConfigError(
+                f"sensors.{self.id}.type: unknown {self.type!r} "
+                f"(allowed: {', '.join(SENSOR_TYPES)})"
+            )
+        kind = SENSOR_TYPES[self.type]
+        return SensorSpec(id=self.id, type=kind, pose=self.pose, rate_hz=kind.rate_hz)
+
+
+@dataclass(frozen=True)
+class PoseError:
+    """How far an estimated pose is from the true one.
+
+    Parameters
+    ----------
+    translation_cm : float
+        Distance between the estimated and true optical centres, centimetres.
+    rotation_deg : float
+        Angle of the rotation between the estimated and true orientations, degrees.
+    """
+
+    translation_cm: float
+    rotation_deg: float
+
+
+def pose_error(estimate: np.ndarray, truth: np.ndarray) -> PoseError:
+    """Translation and rotation error of a 4x4 ``world_from_optical`` estimate."""
+    rel = estimate[:3, :3].T @ truth[:3, :3]
+    cos = float(np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0))
+    return PoseError(
+        translation_cm=100.0 * float(np.linalg.norm(estimate[:3, 3] - truth[:3, 3])),
+        rotation_deg=math.degrees(math.acos(cos)),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class SimCalibration:
+    """A simulated checkerboard calibration and how close it came.
+
+    Parameters
+    ----------
+    calibration : ExtrinsicCalibration
+        The estimated poses and the solver's report.
+    truth : dict
+        Per sensor id: the true 4x4 ``world_from_optical``.
+    errors : dict
+        Per sensor id: the estimate's :class:`PoseError`.
+    session : BoardSession
+        The scripted board placements.
+    detections : dict
+        Per sensor id: placements in which its detector found the board.
+    """
+
+    calibration: ExtrinsicCalibration
+    truth: dict[str, np.ndarray]
+    errors: dict[str, PoseError]
+    session: BoardSession
+    detections: dict[str, int]
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary: per sensor the estimated pose, its error and views; the report."""
+        poses = self.calibration.poses()
+        return {
+            "sensors": {
+                sid: {
+                    "pose": poses[sid].model_dump(),
+                    "translation_error_cm": err.translation_cm,
+                    "rotation_error_deg": err.rotation_deg,
+                    "views": self.detections[sid],
+                }
+                for sid, err in self.errors.items()
+            },
+            "placements": len(self.session.placements),
+            "report": self.calibration.report.to_dict(),
+        }
+
+
+def render_observations(
+    sensors: Sequence[SimSensor],
+    room: Room,
+    session: BoardSession,
+    *,
+    seed: int = 0,
+    floor_frames: int = 5,
+    progress: CalibrationProgress | None = None,
+) -> list[BoardObservation]:
+    """Render the session through every sensor and detect the board in each frame.
+
+    Each sensor captures a placement at its stamp plus a per-sensor phase within one
+    frame period (sensors are not synchronised). A sensor sees the floor board when it
+    finds it in at least half of its frames.
+
+    Parameters
+    ----------
+    sensors : sequence of SimSensor
+        The sensors, at their true poses.
+    room : Room
+        The room.
+    session : BoardSession
+        The placements.
+    seed : int
+        Seed of the image and depth noise.
+    floor_frames : int
+        Frames captured of the board lying on the floor; their corners are averaged
+        (:func:`~openptrack_py.calibration.checkerboard.average_views`). A held board
+        moves, so one frame is taken of each held placement.
+    progress : CalibrationProgress, optional
+        Updated after every placement.
+
+    Returns
+    -------
+    list of BoardObservation
+        One per frame where the board was found.
+    """
+    rigs = _rigs(sensors, room, seed)
+    out: list[BoardObservation] = []
+    for seq, placement in enumerate(session.placements):
+        found: dict[str, np.ndarray | None] = {}
+        frames = floor_frames if placement.on_floor else 1
+        for rig in rigs:
+            view = _capture(rig, session.board, placement, seq, frames)
+            found[rig.sensor.id] = None if view is None else view.corners
+            if view is not None:
+                stamp = placement.stamp + rig.phase
+                out.append(
+                    BoardObservation(rig.sensor.id, stamp, view.corners, view.camera_from_board)
+                )
+        if progress is not None:
+            progress.update(placement.stamp, found)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Rig:
+    """One simulated sensor as it captures the session."""
+
+    sensor: SimSensor
+    renderer: DepthRenderer  # with the sensor's noise
+    truth: DepthRenderer  # noise-free, for the board's occlusion
+    rng: np.random.Generator  # the sensor's noise source
+    phase: float  # capture delay after each placement's stamp (sensors are not in sync)
+
+
+def _rigs(sensors: Sequence[SimSensor], room: Room, seed: int) -> list[_Rig]:
+    """Each sensor's renderers, noise source and capture phase, seeded from ``seed``."""
+    seeds = np.random.SeedSequence(seed).spawn(len(sensors))
+    rigs = []
+    for sensor, ss in zip(sensors, seeds, strict=True):
+        spec = sensor.spec()
+        rng = np.random.default_rng(ss)
+        rigs.append(
+            _Rig(
+                sensor,
+                DepthRenderer(spec, room, rng),
+                DepthRenderer(spec, room, rng, noise=False),
+                rng,
+                float(rng.uniform(0.0, 1.0 / spec.rate_hz)),
+            )
+        )
+    return rigs
+
+
+def _capture(
+    rig: _Rig, board: Checkerboard, placement: BoardPlacement, seq: int, frames: int
+) -> BoardView | None:
+    """One sensor's view of one placement: its frames' corners averaged.
+
+    None unless the board is found in at least half of the ``frames`` frames.
+    """
+    sensor, renderer = rig.sensor, rig.renderer
+    stamp = placement.stamp + rig.phase
+    snap = holder_snapshot(placement, stamp)
+    scene = rig.truth.render(snap, stamp, seq).frame.depth
+    views = []
+    for i in range(frames):
+        frame = draw_board(
+            renderer.render(snap, stamp + i / sensor.spec().rate_hz, seq),
+            board,
+            placement.world_from_board,
+            renderer.world_from_camera,
+            renderer.intrinsics,
+            sensor_type=sensor.type,
+            rng=rig.rng,
+            scene_depth=scene,
+        ).frame
+        view = detect_board(frame, board, sensor.type)
+        if view is not None:
+            views.append(view)
+    if 2 * len(views) < frames or not views:
+        return None
+    return average_views(views, board, renderer.intrinsics)
+
+
+def refit_intrinsics(
+    observations: Sequence[BoardObservation], sensors: Sequence[SimSensor], board: Checkerboard
+) -> tuple[dict[str, Intrinsics], list[BoardObservation]]:
+    """Each sensor's pinhole from its own views (``calibrateCamera``), and views re-posed.
+
+    Distortion is not estimated (the simulated sensors have none).
+
+    Raises
+    ------
+    CalibrationError
+        Naming a sensor with fewer than three views.
+    """
+    fitted: dict[str, Intrinsics] = {}
+    for sensor in sensors:
+        kind = SENSOR_TYPES[sensor.type]
+        corners = [o.corners for o in observations if o.sensor_id == sensor.id]
+        try:
+            fit = calibrate_intrinsics(
+                corners, board, kind.width, kind.height,
+                initial=Intrinsics.for_sensor(sensor.type), distortion=False,
+            )  # fmt: skip
+        except CalibrationError as exc:
+            raise CalibrationError(f"sensor {sensor.id!r}: {exc}") from None
+        fitted[sensor.id] = fit.intrinsics
+    reposed = []
+    for o in observations:
+        pose = board_pose(o.corners, board, fitted[o.sensor_id]).camera_from_board
+        reposed.append(BoardObservation(o.sensor_id, o.stamp, o.corners, pose))
+    return fitted, reposed
+
+
+def simulate_checkerboard_calibration(
+    sensors: Sequence[SimSensor],
+    room: Room,
+    *,
+    board: Checkerboard = SIM_BOARD,
+    placements: int = 30,
+    seed: int = 0,
+    reference: str | None = None,
+    min_shared_views: int = 3,
+    estimate_intrinsics: bool = False,
+    progress: CalibrationProgress | None = None,
+) -> SimCalibration:
+    """Run the whole checkerboard calibration on simulated sensors.
+
+    Parameters
+    ----------
+    sensors : sequence of SimSensor
+        The sensors to calibrate, at their true poses.
+    room : Room
+        The room they are in.
+    board : Checkerboard
+        The board moved around (OpenPTrack's 5 x 6 corners of 0.12 m by default).
+    placements : int
+        Held board placements (the floor placement comes on top).
+    seed : int
+        Seed of the session script and of the sensors' noise.
+    reference : str, optional
+        The sensor held fixed in the solve; the first by default.
+    min_shared_views : int
+        Fewest placements two sensors must share to link them.
+    estimate_intrinsics : bool
+        Estimate each sensor's pinhole from its views (:func:`refit_intrinsics`) rather
+        than use its type's nominal one (which the renderer uses).
+    progress : CalibrationProgress, optional
+        Updated after every placement, as a live capture loop would.
+
+    Returns
+    -------
+    SimCalibration
+        Estimates, truth and per-sensor pose errors.
+
+    Raises
+    ------
+    CalibrationError
+        When the calibration itself fails (a sensor never saw the board, sensors not
+        connected by enough shared views, ...).
+    """
+    rng = np.random.default_rng(seed)
+    specs = [s.spec() for s in sensors]
+    session = board_session(board, room, specs, rng, placements=placements)
+    observations = render_observations(sensors, room, session, seed=seed + 1, progress=progress)
+    floor = session.floor
+    intrinsics = {s.id: Intrinsics.for_sensor(s.type) for s in sensors}
+    if estimate_intrinsics:
+        intrinsics, observations = refit_intrinsics(observations, sensors, board)
+    calibration = calibrate_extrinsics(
+        observations,
+        intrinsics,
+        board.object_points(),
+        reference=reference,
+        floor_stamp=None if floor is None else floor.stamp,
+        world_from_floor_board=None if floor is None else floor.world_from_board,
+        min_shared_views=min_shared_views,
+    )
+    truth = {s.id: world_from_optical(s.pose) for s in sensors}
+    errors = {s.id: pose_error(calibration.world_from_optical[s.id], truth[s.id]) for s in sensors}
+    counts = {s.id: sum(o.sensor_id == s.id for o in observations) for s in sensors}
+    return SimCalibration(calibration, truth, errors, session, counts)
