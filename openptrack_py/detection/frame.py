@@ -174,3 +174,23 @@ class Frame:
     def organised(self) -> bool:
         """Whether the frame is a depth image (else an unorganised cloud)."""
         return self.depth is not None
+
+
+def image_box(cam: np.ndarray, k: Intrinsics, pad: int = 0) -> tuple[int, int, int, int] | None:
+    """Pixel box ``(u0, u1, v0, v1)`` covering optical-frame points; None when out of view.
+
+    The whole image when some point is at or behind the camera; ``pad`` more pixels on
+    every side.
+    """
+    z = cam[:, 2]
+    if z.max() <= 0.05:
+        return None
+    if z.min() <= 0.05:
+        return 0, k.width, 0, k.height
+    u = k.fx * cam[:, 0] / z + k.cx
+    v = k.fy * cam[:, 1] / z + k.cy
+    u0, u1 = max(math.floor(u.min()) - pad, 0), min(math.floor(u.max()) + 2 + pad, k.width)
+    v0, v1 = max(math.floor(v.min()) - pad, 0), min(math.floor(v.max()) + 2 + pad, k.height)
+    if u0 >= u1 or v0 >= v1:
+        return None
+    return u0, u1, v0, v1

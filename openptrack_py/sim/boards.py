@@ -34,10 +34,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from openptrack_py.calibration.checkerboard import Checkerboard
-from openptrack_py.detection.frame import Frame, Intrinsics
+from openptrack_py.detection.frame import Frame, Intrinsics, image_box
 from openptrack_py.geometry import invert
 from openptrack_py.sensor_types import SENSOR_TYPES
-from openptrack_py.sim.render import DEPTH_NOISE, INTENSITY_GAIN, RenderedFrame, image_box
+from openptrack_py.sim.render import DEPTH_NOISE, INTENSITY_GAIN, RenderedFrame
 
 __all__ = [
     "BOARD_THICKNESS_M",
