@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from openptrack_py.calibration.posegraph import connected_groups
 from openptrack_py.calibration.walk_settings import WalkSettings
 from openptrack_py.calibration.walk_tracks import Pose2D, _interp, _matches, _rot, _Walker
 from openptrack_py.errors import CalibrationError
@@ -208,20 +209,7 @@ def _pair(wi: _Walker, wj: _Walker, s: WalkSettings, prior: tuple[Pose2D, float]
 
 def _components(ids: Sequence[str], edges: Iterable[tuple[str, str]]) -> list[list[str]]:
     """Connected components, each in ``ids`` order, the components by first member."""
-    parent = {i: i for i in ids}
-
-    def root(x: str) -> str:
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for a, b in edges:
-        parent[root(a)] = root(b)
-    groups: dict[str, list[str]] = {}
-    for i in ids:
-        groups.setdefault(root(i), []).append(i)
-    return list(groups.values())
+    return connected_groups(ids, dict.fromkeys(edges, 1), 1)
 
 
 def _check_graph(ids: Sequence[str], pairs: Sequence[_Pair], s: WalkSettings) -> None:
