@@ -25,7 +25,12 @@ from pathlib import Path
 
 import pytest
 
-from openptrack_py.config import ZenohConfig, load_network
+from openptrack_py.calibration.files import (
+    SensorCalibration,
+    entry_payload,
+    parse_entry_payload,
+)
+from openptrack_py.config import Pose, ZenohConfig, load_network
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages import (
     Detection,
@@ -45,6 +50,7 @@ site: default
 zenoh: {{hub: null, listen: ["tls/127.0.0.1:0"]}}
 stats_interval_s: 0.5
 security: {{certs: {certs}}}
+calibration: {certs}/calibration.yaml
 sensors:
   - {{id: a, source: camera, pose: {{x: 0.0, y: 0.0}}}}
   - {{id: b, source: camera, pose: {{x: 8.0, y: 0.0, yaw_deg: 180}}}}
@@ -408,3 +414,38 @@ def test_a_node_announces_only_its_own_liveliness(site: Site) -> None:
     assert "opt/default/alive/tracker" in seen  # the real nodes are seen alive (gossip)
     assert "opt/default/alive/detector_b" in seen  # and the sensor's own token
     assert "opt/default/alive/sim" not in seen
+
+
+def _calibration_xs(bus: ZenohBus) -> set[float]:
+    """The x of every valid entry for sensor a that answers a calibration query."""
+    xs = set()
+    for sample in bus.query("opt/default/calibration/a", timeout_s=1.0):
+        _, entry = parse_entry_payload(sample.payload)
+        xs.add(entry.as_pose().x)
+    return xs
+
+
+@pytest.mark.zenoh
+@pytest.mark.slow
+def test_only_the_calibration_node_may_answer_or_update_the_calibration(site: Site) -> None:
+    """A sensor's certificate can neither answer calibration queries nor publish updates."""
+    true = entry_payload("a", SensorCalibration(pose=Pose(x=1.0)))
+    forged = entry_payload("a", SensorCalibration(pose=Pose(x=9.0)))
+    impostor_ep, server_ep = (f"tls/127.0.0.1:{free_port()}" for _ in range(2))
+    updates: list[bytes] = []
+    with site.bus("detector_b", site.tracker_endpoint, listen=(impostor_ep,)) as impostor:
+        impostor.serve("opt/default/calibration/*", lambda _key, _payload: forged)
+        with site.bus("detector_a", impostor_ep) as asker:
+            asker.subscribe("opt/default/calibration/a", lambda s: updates.append(s.payload))
+            assert asker.peers(), "sensor a's own certificate must be accepted"
+            time.sleep(1.0)
+            assert _calibration_xs(asker) == set()  # the forged answer never arrives
+            _flood(impostor, "opt/default/calibration/a", forged, 1.0)
+            assert updates == []
+    with site.bus("calibration", site.tracker_endpoint, listen=(server_ep,)) as server:
+        server.serve("opt/default/calibration/*", lambda _key, _payload: true)
+        with site.bus("detector_a", server_ep) as asker:
+            asker.subscribe("opt/default/calibration/a", lambda s: updates.append(s.payload))
+            wait_for(lambda: _calibration_xs(asker) == {1.0}, 15, "the calibration node's answer")
+            _flood(server, "opt/default/calibration/a", true, 1.0)
+            assert updates and set(updates) == {true}
