@@ -105,7 +105,8 @@ def test_the_access_list_gives_each_identity_only_its_own_keys(tmp_path: Path) -
     net.write_text(NETWORK.format(certs=tmp_path, udp=21234))
     cfg = load_network(net)
     assert identities(cfg) == [
-        "launcher", "detector_a", "detector_b", "detector_c", "tracker", "output", "operator"
+        "launcher", "detector_a", "detector_b", "detector_c", "tracker", "calibration",
+        "output", "operator",
     ]  # fmt: skip
     acl = access_control(cfg)
     assert acl["enabled"] and acl["default_permission"] == "deny"
@@ -126,6 +127,8 @@ def test_the_access_list_gives_each_identity_only_its_own_keys(tmp_path: Path) -
     assert "opt/default/config/*" in puts["operator"]
     assert [n for n, keys in puts.items() if "opt/default/config/*" in keys] == ["operator"]
     assert [n for n, keys in puts.items() if "opt/default/tracks" in keys] == ["tracker"]
+    calibration = [n for n, keys in puts.items() if "opt/default/calibration/*" in keys]
+    assert calibration == ["calibration"]
 
 
 def test_security_needs_tls_endpoints_and_the_identitys_files(tmp_path: Path) -> None:
@@ -381,7 +384,7 @@ def test_certs_command_makes_what_a_network_needs(tmp_path: Path) -> None:
     assert kept.returncode == 0 and "every identity" in kept.stdout  # nothing new to issue
     assert certs("issue", str(folder), "../escape").returncode == 2
     listing = certs("list", str(folder)).stdout.splitlines()
-    assert len(listing) == 7 and all(line.endswith("ok") for line in listing)
+    assert len(listing) == 8 and all(line.endswith("ok") for line in listing)
     assert all("master" in line for line in listing)
     for name in identities(load_network(net)):
         session_settings(load_network(net), name)  # every identity's files are there
