@@ -29,7 +29,11 @@ from pathlib import Path
 import numpy as np
 
 from openptrack_py.config import ZenohConfig
-from openptrack_py.messages.codec import decode_node_stats, decode_track_batch
+from openptrack_py.messages.codec import (
+    decode_detection_batch,
+    decode_node_stats,
+    decode_track_batch,
+)
 from openptrack_py.runtime.ports import free_port
 from openptrack_py.transport.zenoh_bus import ZenohBus
 
@@ -91,7 +95,9 @@ def run(minutes: float, out: Path) -> dict[str, object]:
         cfg = ZenohConfig(hub=None, connect=[f"tcp/127.0.0.1:{hub}"], listen=[])
         lock = threading.Lock()
         latencies: list[tuple[float, float]] = []
+        arrivals: list[tuple[float, float]] = []
         counters: dict[str, int] = {}
+        timings: list[dict[str, float]] = []
 
         def on_tracks(sample: object) -> None:
             now = time.time()
@@ -99,15 +105,23 @@ def run(minutes: float, out: Path) -> dict[str, object]:
             with lock:
                 latencies.append((now, now - batch.stamp))
 
+        def on_detections(sample: object) -> None:
+            now = time.time()
+            batch = decode_detection_batch(sample.payload)  # type: ignore[attr-defined]
+            with lock:
+                arrivals.append((now, now - batch.stamp))
+
         def on_stats(sample: object) -> None:
             stats = decode_node_stats(sample.payload)  # type: ignore[attr-defined]
             with lock:
                 counters.update(stats.counters)
+                timings.append(stats.timings_ms)
 
         try:
             bus = _connect(cfg)
             bus.subscribe("opt/soak/tracks", on_tracks)
             bus.subscribe("opt/soak/stats/tracker", on_stats)
+            bus.subscribe("opt/soak/detections/*", on_detections)
             pid = None
             deadline = time.time() + 60
             while pid is None and time.time() < deadline:
@@ -143,7 +157,7 @@ def run(minutes: float, out: Path) -> dict[str, object]:
                 launcher.wait(timeout=30)
             except subprocess.TimeoutExpired:
                 launcher.kill()
-    return summarise(samples, latencies, start, minutes, out)
+    return summarise(samples, latencies, arrivals, timings, start, minutes, out)
 
 
 def _connect(cfg: ZenohConfig) -> ZenohBus:
@@ -157,13 +171,25 @@ def _connect(cfg: ZenohConfig) -> ZenohBus:
             time.sleep(0.5)
 
 
+def _percentiles(delays: list[tuple[float, float]], start: float) -> dict[str, float]:
+    lat = np.array([d for t, d in delays if t - start >= WARMUP_S]) * 1e3
+    return {
+        "p50": round(float(np.percentile(lat, 50)), 1),
+        "p99": round(float(np.percentile(lat, 99)), 1),
+        "max": round(float(lat.max()), 1),
+        "batches": len(lat),
+    }
+
+
 def summarise(
-    samples: list[dict], latencies: list[tuple[float, float]], start: float, minutes: float,
-    out: Path,
+    samples: list[dict], latencies: list[tuple[float, float]],
+    arrivals: list[tuple[float, float]], timings: list[dict[str, float]], start: float,
+    minutes: float, out: Path,
 ) -> dict[str, object]:  # fmt: skip
     """Figures after the warm-up, the JSON and the plot."""
     steady = [s for s in samples if s["t"] >= WARMUP_S]
     lat = np.array([d for t, d in latencies if t - start >= WARMUP_S]) * 1e3
+    stages = sorted({k for t in timings[int(WARMUP_S) :] for k in t})
     rss = np.array([s["rss_mib"] for s in steady])
     first, last = steady[0], steady[-1]
     span = max(last["t"] - first["t"], 1e-9)
@@ -172,11 +198,11 @@ def summarise(
         "network": "stress (120 people, 10 sensors), realistic profile, on loopback",
         "minutes": minutes,
         "warmup_s": WARMUP_S,
-        "latency_ms": {
-            "p50": round(float(np.percentile(lat, 50)), 1),
-            "p99": round(float(np.percentile(lat, 99)), 1),
-            "max": round(float(lat.max()), 1),
-            "batches": len(lat),
+        "latency_ms": _percentiles(latencies, start),
+        "detections_latency_ms": _percentiles(arrivals, start),
+        "tracker_stage_ms": {
+            k: round(float(np.mean([t[k] for t in timings[int(WARMUP_S) :] if k in t])), 3)
+            for k in stages
         },
         "rss_mib": {
             "after_warmup": float(rss[0]),

@@ -110,7 +110,7 @@ def test_no_file_gives_defaults() -> None:
         (
             "zenoh.xyzzy=1",
             "zenoh.xyzzy: unknown key (allowed: config_file, connect, hub, hub_host, listen, "
-            "mode, multicast_scouting)",
+            "mode, multicast_scouting, shared_memory)",
         ),
     ],
     ids=["sensor-key", "top-level-key", "nested-sim-key", "nested-pose-key", "no-suggestion"],

@@ -111,8 +111,7 @@ class Rig:
     def rss_mib(self) -> float:
         """The tracker's private resident memory (``RssAnon``), MiB.
 
-        Zenoh's shared-memory segments for large local messages (a fixed pool, shared
-        with the sender) are resident once touched and counted apart (``RssShmem``).
+        Shared memory (``RssShmem``) is counted apart; Zenoh's is off in these sessions.
         """
         text = Path(f"/proc/{self.proc.pid}/status").read_text()
         return int(re.search(r"RssAnon:\s+(\d+)", text).group(1)) / 1024  # type: ignore[union-attr]
@@ -200,10 +199,10 @@ def test_an_uncalibrated_sensor_never_takes_the_frame(rig: Rig) -> None:
 
 
 def test_thousands_of_detections_per_batch_are_capped(rig: Rig) -> None:
-    """Two floods of 2,000-detection batches: capped, and memory does not grow with them.
+    """Two floods of 2,000-detection batches: capped, and memory comes back after each.
 
-    The first flood leaves a one-time high-water mark (the allocator's and Zenoh's
-    buffers grown for 200 kB messages, about 16 MiB here); a second flood adds nothing.
+    (With Zenoh's shared memory on, the first flood left 15 MiB for good: its watchdog
+    threads and buffers. Sessions have it off unless a network asks for it.)
     """
     pub = rig.publisher("b")
     baseline = rig.rss_mib()
@@ -219,8 +218,7 @@ def test_thousands_of_detections_per_batch_are_capped(rig: Rig) -> None:
         time.sleep(11.0)  # the ghosts die, and the node gives memory back (every 10 s)
         after.append(rig.rss_mib())
     assert rig.counter("detections_capped") > 2 * 100_000
-    assert after[1] < after[0] * 1.10, (baseline, after)
-    assert after[0] < baseline + 32, (baseline, after)
+    assert max(after) < baseline * 1.10, (baseline, after)
 
 
 def test_a_flood_of_batches_on_one_key_is_rate_limited(rig: Rig) -> None:

@@ -252,3 +252,32 @@ def test_an_uncalibrated_sensor_speaking_first_does_not_lock_the_frame() -> None
     tracks, dropped = _frame_batches(sent, [POSED, CAM])
     assert dropped == 3
     assert {t.frame_id for t in tracks} == {"world"} and any(t.tracks for t in tracks)
+
+
+def test_a_tracker_that_fell_behind_tracks_only_each_sensors_newest_batch() -> None:
+    """Batches of one sensor waiting together: the newest is tracked, the rest superseded,
+    and every step's tracks are published (the other sensor's batch is not touched)."""
+    from openptrack_py.config import NetworkConfig, TrackerConfig
+    from openptrack_py.runtime.node import Node
+    from openptrack_py.tracking.service import TrackerService
+    from openptrack_py.transport.memory import MemoryBus, MemoryNetwork
+
+    network = NetworkConfig(sensors=[POSED, {**POSED, "id": "b"}])
+    net = MemoryNetwork()
+    sender = MemoryBus(net)
+    tracks: list[TrackBatch] = []
+    with MemoryBus(net) as bus, Node("tracker", bus, stats_interval_s=0) as node:
+        service = TrackerService(
+            node, TrackerConfig(reorder_window_s=0.0, clock_correction="none"), network
+        )
+        sender.subscribe(
+            "opt/default/tracks", lambda s: tracks.append(decode_track_batch(s.payload))
+        )
+        t0 = time.time()
+        det = Detection(x=2.0, y=1.0, z=0.9, height=1.7, confidence=0.9, distance=3.0)
+        for k, sensor in enumerate(["a", "b", "a", "a"]):
+            batch = DetectionBatch(sensor, k, t0 + k / 30, "world", (det,))
+            sender.put(f"opt/default/detections/{sensor}", encode_detection_batch(batch))
+        assert service.step_once(timeout_s=0.05) == 2
+        assert node.counters.get("superseded") == 2
+        assert [round(b.stamp - t0, 3) for b in tracks] == [round(1 / 30, 3), round(3 / 30, 3)]

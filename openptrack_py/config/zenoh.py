@@ -33,6 +33,11 @@ class ZenohConfig(StrictModel):
         Extra endpoints every node connects to (e.g. a zenohd router).
     multicast_scouting : bool
         Let sessions discover each other by UDP multicast as well.
+    shared_memory : bool
+        Let sessions on one host pass large messages through Zenoh's shared memory. Off:
+        our messages are small, deployed sensors sit on other hosts, and a session that
+        once received shared memory keeps its watchdog threads and buffers for good (in
+        the tracker, 15 MiB after one burst of large local batches, never given back).
     config_file : Path, optional
         A Zenoh JSON5 configuration applied first; the keys above override it.
     """
@@ -43,6 +48,7 @@ class ZenohConfig(StrictModel):
     listen: list[str] = Field(default_factory=lambda: ["tcp/127.0.0.1:0"])
     connect: list[str] = Field(default_factory=list)
     multicast_scouting: bool = False
+    shared_memory: bool = False
     config_file: Path | None = None
 
     def named_endpoints(

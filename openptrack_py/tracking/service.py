@@ -8,8 +8,10 @@ TrackBatch on ``opt/<site>/tracks`` after every step.
 Admission control (:mod:`~openptrack_py.tracking.admission`) refuses, and counts, batches
 that would harm the tracker although well formed: from a sensor the network does not
 list, on another sensor's key, in another frame, faster than the sensor's rate, stamped
-far from its clock; detections beyond what a sensor can see are capped. Load shedding: a
-batch that waited longer than ``max_latency_s`` for the tracker is dropped (``shed``).
+far from its clock; detections beyond what a sensor can see are capped. Load shedding: of
+several batches of one sensor waiting together only the newest is tracked
+(``superseded``), and a batch that waited longer than ``max_latency_s`` for the tracker
+is dropped (``shed``); each step's tracks go out as soon as it is taken.
 
 Live reconfiguration: a :class:`~openptrack_py.messages.ConfigUpdate` put on
 ``opt/<site>/config/<node>`` is validated against
@@ -37,6 +39,7 @@ from openptrack_py.messages.codec import (
 )
 from openptrack_py.messages.config_update import ConfigAck, ConfigUpdate
 from openptrack_py.messages.detection import DetectionBatch
+from openptrack_py.runtime.counters import Counters
 from openptrack_py.runtime.node import Inbox, Node, Received
 from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.tracking.admission import Admission, SensorLimits, cap_detections
@@ -92,6 +95,17 @@ def build_admission(network: NetworkConfig, config: TrackerConfig) -> Admission:
         max_clock_jump_s=config.max_clock_jump_s,
         sensor_forget_s=config.sensor_forget_s,
     )
+
+
+def newest_per_sensor(
+    admitted: list[tuple[DetectionBatch, float]], counters: Counters
+) -> list[tuple[DetectionBatch, float]]:
+    """Of each sensor's batches (with arrival times), the newest; the rest ``superseded``."""
+    newest = {batch.sensor_id: i for i, (batch, _) in enumerate(admitted)}
+    if len(newest) == len(admitted):
+        return admitted
+    counters.inc("superseded", len(admitted) - len(newest))
+    return [pair for i, pair in enumerate(admitted) if newest[pair[0].sensor_id] == i]
 
 
 class TrackerService:
@@ -255,9 +269,13 @@ class TrackerService:
 
     # ---------------------------------------------------------------------- loop
 
-    def _publish(self, results: list) -> None:
-        for _batch, tracks in results:
+    def _publish(self, results: list) -> int:
+        """Publish every step's tracks; return the number of steps."""
+        now = time.time()
+        for batch, tracks in results:
             self._tracks.put(encode_track_batch(tracks))
+            self.node.counters.add_timing("capture_to_publish", now - batch.stamp)
+        return len(results)
 
     def _report_counters(self) -> None:
         counters = self.node.counters
@@ -283,26 +301,37 @@ class TrackerService:
         return batch
 
     def step_once(self, timeout_s: float | None = None) -> int:
-        """Handle pending updates, then pending batches; return the number of steps."""
+        """Handle pending updates, then pending batches; return the number of steps.
+
+        Each step's tracks are published as soon as it is taken. Of several admitted
+        batches of one sensor waiting together, only the newest is tracked (the others
+        are counted as ``superseded``): a tracker that fell a frame behind catches up at
+        once instead of carrying the delay, as a detector keeps only its newest frame.
+        """
         for item in self._updates.drain(timeout=0):
             self._acks.put(encode_config_ack(self.apply(item.message)))
-        results = []
-        with self.node.counters.timed("step"):
+        counters = self.node.counters
+        steps = 0
+        with counters.timed("step"):
+            admitted = []
             for item in self._batches.drain(timeout=timeout_s):
-                batch = self._admit(item, time.time())
+                now = time.time()
+                counters.add_timing("inbox", now - item.received)
+                batch = self._admit(item, now)
                 if batch is not None:
-                    if self._pending is not None:
-                        self._resume_tracks(batch)
-                    results += self.pipeline.push(batch, item.received)
-            results += self.pipeline.poll(time.time())
-        self._publish(results)
+                    admitted.append((batch, item.received))
+            for batch, received in newest_per_sensor(admitted, counters):
+                if self._pending is not None:
+                    self._resume_tracks(batch)
+                steps += self._publish(self.pipeline.push(batch, received))
+            steps += self._publish(self.pipeline.poll(time.time()))
         self._report_counters()
         self._checkpoint()
         problem = self._roster.reload_if_changed(self.pipeline.tracker.identity)
         if problem:
             self.node.counters.inc("roster_errors")
             self.node.bad_input.warning("roster", f"roster file not loaded: {problem}")
-        return len(results)
+        return steps
 
     def run(self) -> None:
         """Track until the node stops."""

@@ -90,6 +90,7 @@ def build_zenoh_config(
         "listen/endpoints": json.dumps(listen_eps if cfg.mode == "peer" or as_hub else []),
         "connect/endpoints": json.dumps(connect_eps),
         "scouting/multicast/enabled": json.dumps(cfg.multicast_scouting),
+        "transport/shared_memory/enabled": json.dumps(cfg.shared_memory),
     }
     entries.update({key: json.dumps(value) for key, value in (settings or {}).items()})
     for key, value in entries.items():
