@@ -281,3 +281,33 @@ def test_a_tracker_that_fell_behind_tracks_only_each_sensors_newest_batch() -> N
         assert service.step_once(timeout_s=0.05) == 2
         assert node.counters.get("superseded") == 2
         assert [round(b.stamp - t0, 3) for b in tracks] == [round(1 / 30, 3), round(3 / 30, 3)]
+
+
+@pytest.mark.parametrize("discover", [False, True], ids=["listed-only", "discovering"])
+def test_the_reorder_window_never_waits_for_a_sensor_the_network_does_not_list(
+    discover: bool,
+) -> None:
+    """An unlisted sensor speaking once a second: refused, so the listed sensor's batches
+    are tracked at once; a network that discovers sensors waits for it (the contrast)."""
+    from openptrack_py.config import NetworkConfig, TrackerConfig
+    from openptrack_py.runtime.node import Node
+    from openptrack_py.tracking.service import TrackerService
+    from openptrack_py.transport.memory import MemoryBus, MemoryNetwork
+
+    network = NetworkConfig(sensors=[POSED])
+    config = TrackerConfig(
+        reorder_window_s=2.0, discover_sensors=discover, clock_correction="none"
+    )
+    net = MemoryNetwork()
+    sender = MemoryBus(net)
+    det = Detection(x=2.0, y=1.0, z=0.9, height=1.7, confidence=0.9, distance=3.0)
+    with MemoryBus(net) as bus, Node("tracker", bus, stats_interval_s=0) as node:
+        service = TrackerService(node, config, network)
+        t0 = time.time()
+        for k, (sensor, stamp) in enumerate([("x", t0), ("x", t0 + 0.05), ("a", t0 + 0.95)]):
+            sender.put(
+                f"opt/default/detections/{sensor}",
+                encode_detection_batch(DetectionBatch(sensor, k, stamp, "world", (det,))),
+            )
+            steps = service.step_once(timeout_s=0.05)
+    assert steps == (0 if discover else 1)
