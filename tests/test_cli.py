@@ -97,7 +97,7 @@ def test_scenarios_lists_every_scenario() -> None:
     names = [line.split()[0] for line in result.stdout.splitlines()]
     assert names == [
         "crowd", "distance", "occlusions", "classroom", "installation", "stress", "reentry",
-        "uniforms", "overhead", "corridor",
+        "uniforms", "overhead", "corridor", "walk",
     ]  # fmt: skip
 
 

@@ -588,3 +588,12 @@ def test_sensor_lookup() -> None:
     with pytest.raises(ConfigError, match=r"no sensor with id 'zz' \(known: k2_a, k2_b, k2_c\)"):
         config.sensor("zz")
     assert isinstance(config.sensors[0], SensorConfig)
+
+
+def test_a_network_file_may_name_every_scenario_the_simulator_has() -> None:
+    from typing import get_args
+
+    from openptrack_py.config import ScenarioName
+    from openptrack_py.sim import SCENARIO_NAMES
+
+    assert list(get_args(ScenarioName)) == list(SCENARIO_NAMES)

@@ -77,6 +77,7 @@ from openptrack_py.calibration.walk_tracks import (
     WalkTrack,
     _Walker,
     _walker,
+    floor_from_world,
     report_in_world,
     tracks_from_batches,
 )
@@ -90,6 +91,7 @@ __all__ = [
     "WalkSettings",
     "WalkTrack",
     "calibrate_walk",
+    "floor_from_world",
     "refine_walk",
     "report_in_world",
     "tracks_from_batches",

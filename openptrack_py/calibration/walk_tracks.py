@@ -27,13 +27,21 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from openptrack_py.calibration.walk_settings import WalkSettings
+from openptrack_py.detection.ground import GroundPlane
 from openptrack_py.errors import CalibrationError
+from openptrack_py.geometry import invert
 
 if TYPE_CHECKING:
     from openptrack_py.config import Pose
     from openptrack_py.messages.detection import DetectionBatch
 
-__all__ = ["Pose2D", "WalkTrack", "report_in_world", "tracks_from_batches"]
+__all__ = [
+    "Pose2D",
+    "WalkTrack",
+    "floor_from_world",
+    "report_in_world",
+    "tracks_from_batches",
+]
 
 
 def _wrap_deg(angle: float) -> float:
@@ -189,30 +197,79 @@ class WalkTrack:
         return WalkTrack(self.sensor_id, self.stamps, pose.apply(self.xy), self.confidence)
 
 
-def tracks_from_batches(batches: Iterable[DetectionBatch]) -> tuple[WalkTrack, ...]:
+def tracks_from_batches(
+    batches: Iterable[DetectionBatch], believed: Mapping[str, np.ndarray] | None = None
+) -> tuple[WalkTrack, ...]:
     """Group detection batches (as recorded from the network) into one track per sensor.
 
     Parameters
     ----------
     batches : iterable of DetectionBatch
         Every batch received during the walk, any order, any sensors.
+    believed : mapping, optional
+        Each sensor's ``world_from_optical`` (4x4) as its detector believed it while
+        recording. With it every track is in its sensor's floor frame: a batch in the
+        sensor's own frame (``frame_id`` its id: a detector without a pose) is already,
+        a batch in ``world`` is taken back through the believed pose
+        (:func:`floor_from_world`). Without it positions are the batches' ``x, y``.
 
     Returns
     -------
     tuple of WalkTrack
-        One per sensor, in the order sensors first appear; positions are the batches'
-        ``x, y`` (their ``frame_id``: the sensor's own frame before calibration, the
-        world after).
+        One per sensor, in the order sensors first appear.
+
+    Raises
+    ------
+    CalibrationError
+        With ``believed``: a ``world`` batch of a sensor with no believed pose, or a
+        batch in another frame, naming the sensor.
     """
-    rows: dict[str, list[tuple[float, float, float, float]]] = {}
+    rows: dict[str, list[np.ndarray]] = {}
+    to_floor: dict[str, np.ndarray | None] = {}
     for batch in batches:
-        target = rows.setdefault(batch.sensor_id, [])
-        target.extend((batch.stamp, d.x, d.y, d.confidence) for d in batch.detections)
+        sensor = batch.sensor_id
+        target = rows.setdefault(sensor, [])
+        if not batch.detections:
+            continue
+        values = np.array(
+            [(batch.stamp, d.x, d.y, d.z, d.confidence) for d in batch.detections], dtype=float
+        )
+        if believed is not None and batch.frame_id != sensor:
+            if batch.frame_id != "world":
+                raise CalibrationError(
+                    f"walk: sensor {sensor!r} reported in frame {batch.frame_id!r} "
+                    f"(expected 'world' or its own frame {sensor!r})"
+                )
+            if sensor not in to_floor:
+                if sensor not in believed:
+                    raise CalibrationError(
+                        f"walk: sensor {sensor!r} reported in the world frame but the network "
+                        "gives it no pose to take its detections back to its floor"
+                    )
+                to_floor[sensor] = floor_from_world(believed[sensor])
+            tf = to_floor[sensor]
+            values[:, 1:4] = values[:, 1:4] @ tf[:3, :3].T + tf[:3, 3]
+        target.append(values)
     out = []
-    for sensor, values in rows.items():
-        arr = np.array(values, dtype=float).reshape(-1, 4)
-        out.append(WalkTrack(sensor, arr[:, 0], arr[:, 1:3], arr[:, 3]))
+    for sensor, chunks in rows.items():
+        arr = np.concatenate(chunks) if chunks else np.zeros((0, 5))
+        order = np.argsort(arr[:, 0], kind="stable")
+        arr = arr[order]
+        out.append(WalkTrack(sensor, arr[:, 0], arr[:, 1:3], arr[:, 4]))
     return tuple(out)
+
+
+def floor_from_world(world_from_camera: np.ndarray) -> np.ndarray:
+    """4x4 transform from world positions reported through a pose to that sensor's floor.
+
+    A detector maps what it sees to the world with the pose it believes
+    (``world_from_camera``, optical frame); undoing that pose gives the optical frame, and
+    the floor plane seen from it (the same for the true and a believed pose that differ
+    on the floor only) gives the sensor's floor frame
+    (:meth:`~openptrack_py.detection.ground.GroundPlane.ground_from_camera`).
+    """
+    ground = GroundPlane.from_world_pose(world_from_camera).ground_from_camera()
+    return ground @ invert(world_from_camera)
 
 
 def report_in_world(

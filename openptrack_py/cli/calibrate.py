@@ -2,14 +2,19 @@
 
 Subcommands:
 
-``checkerboard NETWORK --sim``
-    The checkerboard procedure (Munaro et al., OpenPTrack, §4) on the network's
-    simulated sensors: a board moved through the room, corners found in each sensor's
-    colour or infrared image, every pose solved jointly. Prints, per sensor, the views,
-    the reprojection error and the error against the simulator's true pose.
-``walk NETWORK --sim``
+``checkerboard NETWORK --recordings DIR | --sim``
+    The checkerboard procedure (Munaro et al., OpenPTrack, §4): a board moved through
+    the room and held still at each placement, corners found in each sensor's colour or
+    infrared image, every pose solved jointly, the world frame from the board laid on
+    the floor at the end. ``--recordings DIR`` reads the session as each sensor
+    recorded it (``openptrack record-sensor SOURCE DIR/<sensor id>`` on each sensor's
+    computer) and prints per sensor its views, reprojection error and pose; ``--sim``
+    plays it on the network's simulated sensors and prints the error against their
+    true poses (``--sim --record DIR`` writes that session as recordings instead).
+``walk NETWORK --sim | --detections FILE | --live SECONDS``
     Calibration with no checkerboard from one person walking (poses on the floor and
-    clock offsets), or ``--refine`` the network's current calibration from a walk.
+    clock offsets), or ``--refine`` the network's current calibration from a walk: a
+    simulated walk, a recorded one, or the running network's detections.
 ``show FILE``
     Validate a calibration file and print its poses.
 
@@ -28,6 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from openptrack_py.cli.common import EXIT_CONFIG, print_rows
+from openptrack_py.runtime.args import add_zenoh_arguments
 
 if TYPE_CHECKING:
     from openptrack_py.calibration.files import SensorCalibration
@@ -48,12 +54,44 @@ def add_parser(subparsers: Subparsers) -> None:
     _common(board)
     board.add_argument("--placements", type=int, default=30, help="board placements (sim)")
     board.add_argument("--intrinsics", action="store_true", help="also estimate intrinsics")
+    board.add_argument(
+        "--recordings",
+        type=Path,
+        metavar="DIR",
+        help="the session as recorded by each sensor: DIR/<sensor id> (openptrack record-sensor)",
+    )
+    board.add_argument(
+        "--record",
+        type=Path,
+        metavar="DIR",
+        help="with --sim: write the simulated session as those recordings, and stop",
+    )
+    board.add_argument(
+        "--board",
+        default="5x6x0.12",
+        metavar="ROWSxCOLSxSQUARE",
+        help="inner corners and square side in metres (default OpenPTrack's 5x6x0.12)",
+    )
+    board.add_argument(
+        "--floor-board",
+        choices=("last", "none"),
+        default="last",
+        help="the world frame: from the board laid on the floor at the end of the session "
+        "(last), or from the first sensor's current pose (none)",
+    )
     board.set_defaults(func=run_checkerboard)
     walk = sub.add_parser("walk", help="calibration from one person walking")
     _common(walk)
     walk.add_argument("--seconds", type=float, default=60.0, help="length of the walk (sim)")
+    walk.add_argument(
+        "--detections", type=Path, help="recorded walk (recording, or eval's detections CSV)"
+    )
+    walk.add_argument(
+        "--live", type=float, metavar="SECONDS", help="listen to the running network this long"
+    )
     walk.add_argument("--refine", action="store_true", help="refine the network's current poses")
     walk.add_argument("--plot", type=Path, help="before/after top view (PNG)")
+    add_zenoh_arguments(walk)
     walk.set_defaults(func=run_walk)
     show = sub.add_parser("show", help="validate a calibration file and print it")
     show.add_argument("file", type=Path)
@@ -115,30 +153,39 @@ def _network_for_writing(args: argparse.Namespace) -> NetworkConfig:
     return network
 
 
-def _sim_sensors(network: NetworkConfig) -> list[Any]:
-    simulated = [s for s in network.sensors if s.source == "sim" and s.pose is not None]
-    if len(simulated) < 2:
-        raise ValueError("--sim needs at least two simulated sensors with a pose")
-    return simulated
-
-
 def run_checkerboard(args: argparse.Namespace) -> int:
     """Calibrate by checkerboard; print per-sensor figures."""
     from openptrack_py.errors import CalibrationError, ConfigError
 
-    if not args.sim:
-        return _fail(
-            "checkerboard: only --sim is available from the command line; on real "
-            "sensors call openptrack_py.calibration.extrinsics.calibrate_extrinsics on "
-            "recorded views (see docs/calibration.md)"
-        )
+    if args.record is not None and not args.sim:
+        return _fail("checkerboard: --record writes a simulated session: it needs --sim")
+    if args.sim == (args.recordings is not None):
+        return _fail("checkerboard: give one of --sim or --recordings DIR")
     try:
         network = _network_for_writing(args)
-        result = _checkerboard_sim(network, args)
-        entries = result.calibration.entries()
-        written = _write(args, network, entries)
+        if args.record is not None:
+            from openptrack_py.cli.calibrate_board import record_sim
+
+            for folder in record_sim(network, args):
+                print(f"wrote {folder}", file=sys.stderr)
+            return 0
+        if args.recordings is not None:
+            from openptrack_py.cli.calibrate_board import from_recordings
+
+            calibration = from_recordings(network, args, _TerminalProgress)
+        else:
+            result = _checkerboard_sim(network, args)
+            calibration = result.calibration
+        written = _write(args, network, calibration.entries())
     except (CalibrationError, ConfigError, ValueError) as exc:
         return _fail(exc)
+    if args.recordings is not None:
+        from openptrack_py.cli.calibrate_board import rows
+
+        print_rows(*rows(calibration), args.format)
+        if written:
+            print(f"wrote {written}", file=sys.stderr)
+        return 0
     summary = result.to_dict()
     report = summary["report"]
     rows = [
@@ -159,17 +206,21 @@ def run_checkerboard(args: argparse.Namespace) -> int:
 
 def _checkerboard_sim(network: NetworkConfig, args: argparse.Namespace) -> Any:
     from openptrack_py.calibration.progress import CalibrationProgress
+    from openptrack_py.cli.calibrate_board import sim_sensors
     from openptrack_py.eval.checkerboard import SimSensor, simulate_checkerboard_calibration
     from openptrack_py.sensor_types import SENSOR_TYPES
     from openptrack_py.sim.live import scenario_from_network
 
-    sensors = [SimSensor.from_config(s) for s in _sim_sensors(network)]
+    sensors = [SimSensor.from_config(s) for s in sim_sensors(network)]
     room = scenario_from_network(network, calibrated=False).room
     sizes = {s.id: (SENSOR_TYPES[s.type].width, SENSOR_TYPES[s.type].height) for s in sensors}
     progress = _TerminalProgress(CalibrationProgress(sizes))
+    from openptrack_py.cli.calibrate_board import board_from_arg
+
     return simulate_checkerboard_calibration(
         sensors,
         room,
+        board=board_from_arg(args.board),
         placements=args.placements,
         seed=args.seed,
         estimate_intrinsics=args.intrinsics,

@@ -9,8 +9,9 @@ from pydantic import Field
 from openptrack_py.config.base import StrictModel
 
 ScenarioName = Literal[
-    "crowd", "distance", "occlusions", "classroom", "installation", "stress", "reentry", "uniforms"
-]
+    "crowd", "distance", "occlusions", "classroom", "installation", "stress", "reentry",
+    "uniforms", "overhead", "corridor", "walk",
+]  # fmt: skip
 """Named scenarios (built by :mod:`openptrack_py.sim.scenarios`)."""
 
 ProfileName = Literal["ideal", "realistic", "harsh"]

@@ -18,8 +18,9 @@ the board lay would give it, so the estimates are in the room's coordinates.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -281,6 +282,59 @@ def _capture(
     if 2 * len(views) < frames or not views:
         return None
     return average_views(views, board, renderer.intrinsics)
+
+
+def record_board_session(
+    sensors: Sequence[SimSensor],
+    room: Room,
+    session: BoardSession,
+    out_dir: Path,
+    *,
+    seed: int = 0,
+    held_frames: int = 4,
+    floor_frames: int = 8,
+) -> dict[str, Path]:
+    """Write a session as each sensor would record it (``openptrack record-sensor``).
+
+    One folder per sensor, ``out_dir/<sensor id>``: ``held_frames`` consecutive frames
+    of each held placement (the board still), ``floor_frames`` of the board on the
+    floor, nothing while it is carried between placements; each sensor at its own
+    phase (unsynchronised). What ``openptrack calibrate checkerboard --recordings`` reads.
+
+    Returns
+    -------
+    dict of str to Path
+        Each sensor's folder.
+    """
+    from openptrack_py.detection.frame import Frame
+    from openptrack_py.detection.sources import record_folder
+
+    out: dict[str, Path] = {}
+    for rig in _rigs(sensors, room, seed):
+        sensor = rig.sensor
+        period = 1.0 / sensor.spec().rate_hz
+
+        def frames(rig: _Rig = rig, period: float = period) -> Iterator[Frame]:
+            for seq, placement in enumerate(session.placements):
+                stamp = placement.stamp + rig.phase
+                snap = holder_snapshot(placement, stamp)
+                scene = rig.truth.render(snap, stamp, seq).frame.depth
+                for i in range(floor_frames if placement.on_floor else held_frames):
+                    yield draw_board(
+                        rig.renderer.render(snap, stamp + i * period, seq),
+                        session.board,
+                        placement.world_from_board,
+                        rig.renderer.world_from_camera,
+                        rig.renderer.intrinsics,
+                        sensor_type=rig.sensor.type,
+                        rng=rig.rng,
+                        scene_depth=scene,
+                    ).frame
+
+        folder = out_dir / sensor.id
+        record_folder(frames(), folder)
+        out[sensor.id] = folder
+    return out
 
 
 def refit_intrinsics(

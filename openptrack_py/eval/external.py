@@ -11,7 +11,7 @@ Ground truth: ``time, id, x, y[, covered]``
     metres on the floor). ``covered`` (0/1, default 1) says whether a sensor could see
     the person; uncovered people are "don't care". A row with an empty ``id`` (and no
     ``x, y``) is a frame with nobody in it.
-Detections: ``time, sensor[, x, y, confidence, z, height, distance, arrival]``
+Detections: ``time, sensor[, x, y, confidence, z, height, distance, arrival, frame]``
     Rows of one ``(time, sensor)`` are one sensor frame (one DetectionBatch); a row
     without ``x, y`` is a frame in which that sensor saw nobody (write those: they tell
     the tracker that time passes). Defaults for what a 2-D source does not know:
@@ -19,7 +19,7 @@ Detections: ``time, sensor[, x, y, confidence, z, height, distance, arrival]``
     ``z`` half the height (a standing person's centroid, as our detector reports it),
     ``distance`` from the sensor :data:`DEFAULT_DISTANCE_M` (it sets the measurement
     noise), ``arrival`` (when the frame reached the tracker) ``time`` plus the
-    evaluation's latency.
+    evaluation's latency, ``frame`` ``world`` (or the sensor's name: its floor frame).
 Tracks: ``time, id, x, y[, vx, vy]``
     Rows of one time are one output of the tracker: every track it reported then (a
     row with an empty ``id`` is an output with no track). Velocities (default 0) move
@@ -101,7 +101,7 @@ MAX_DISORDER_S = 1.0
 
 GROUND_TRUTH_COLUMNS = ("time", "id", "x", "y", "covered")
 DETECTION_COLUMNS = (
-    "time", "sensor", "x", "y", "confidence", "z", "height", "distance", "arrival"
+    "time", "sensor", "x", "y", "confidence", "z", "height", "distance", "arrival", "frame"
 )  # fmt: skip
 TRACK_COLUMNS = ("time", "id", "x", "y", "vx", "vy")
 
@@ -286,7 +286,8 @@ def _sensor_frame(
     stamp, sensor = key
     seq = seqs.get(sensor, -1) + 1
     seqs[sensor] = seq
-    batch = DetectionBatch(sensor, seq, stamp, "world", tuple(detections))
+    frame = row.name("frame") if row.has("frame") else "world"
+    batch = DetectionBatch(sensor, seq, stamp, frame, tuple(detections))
     return SensorFrame(arrival, stamp, batch, ())
 
 

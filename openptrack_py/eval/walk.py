@@ -19,26 +19,24 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from openptrack_py.calibration.walk import Pose2D, WalkTrack
+from openptrack_py.calibration.walk_tracks import floor_from_world
 from openptrack_py.config import Pose, SensorConfig
-from openptrack_py.detection.ground import GroundPlane
-from openptrack_py.geometry import invert, world_from_optical
-from openptrack_py.sim.people import random_person
+from openptrack_py.geometry import world_from_optical
 from openptrack_py.sim.profiles import NoiseProfile
 from openptrack_py.sim.scenarios import build_scenario
 from openptrack_py.sim.sensor_spec import SensorSpec
 from openptrack_py.sim.simulator import DEFAULT_START_TIME, SensorFrame, Simulator, TruthFrame
 from openptrack_py.sim.visibility import SensorView
-from openptrack_py.sim.walking import steer_around
-from openptrack_py.sim.world import Director, Room, World
+from openptrack_py.sim.walker import CalibrationWalker, walk_goals
+from openptrack_py.sim.world import Director
 
 __all__ = [
-    "CalibrationWalker",
     "WalkSession",
     "floor_from_reported",
     "perturb_poses",
@@ -96,14 +94,10 @@ class WalkSession:
 def floor_from_reported(believed: Pose) -> np.ndarray:
     """4x4 transform from world positions reported through ``believed`` to the floor frame.
 
-    A simulated sensor maps what it sees to the world with the pose it believes; undoing
-    that pose gives the optical frame, and the floor plane seen from it (the same for the
-    true and believed poses, which differ on the floor only) gives the sensor's floor
-    frame (:meth:`~openptrack_py.detection.ground.GroundPlane.ground_from_camera`).
+    A simulated sensor maps what it sees to the world with the pose it believes
+    (:func:`~openptrack_py.calibration.walk_tracks.floor_from_world` undoes it).
     """
-    world_from_camera = world_from_optical(believed)
-    ground = GroundPlane.from_world_pose(world_from_camera).ground_from_camera()
-    return ground @ invert(world_from_camera)
+    return floor_from_world(world_from_optical(believed))
 
 
 def _believed(spec: SensorSpec) -> Pose:
@@ -115,87 +109,6 @@ def _believed(spec: SensorSpec) -> Pose:
             "yaw_deg": spec.pose.yaw_deg + err.dyaw_deg,
         }
     )
-
-
-def _walk_goals(
-    room: Room, views: Sequence[SensorView], overlap_preference: float
-) -> Callable[[np.random.Generator], np.ndarray]:
-    """Random free points the walker is seen at (by two sensors or more, preferably)."""
-    ring = 0.4 * np.array([(0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)], dtype=float)
-
-    def seen_by(xy: np.ndarray) -> int:
-        points = xy[None, :] + ring
-        heights = np.full(len(points), 1.75)
-        return sum(bool(v.covers(points, heights).all()) for v in views)
-
-    def sample(rng: np.random.Generator) -> np.ndarray:
-        want = 2 if len(views) > 1 and rng.random() < overlap_preference else 1
-        fallback = None
-        for _ in range(2000):
-            p = room.random_free_point(rng, 0.5)
-            count = seen_by(p)
-            if count >= want:
-                return p
-            if count >= 1 and fallback is None:
-                fallback = p
-        if fallback is None:
-            raise RuntimeError("walk: no free floor in any sensor's view")
-        return fallback
-
-    return sample
-
-
-@dataclass
-class CalibrationWalker:
-    """One adult walking from goal to goal, round the furniture, pausing at each goal.
-
-    A goal not reached within ``give_up_s`` (blocked by furniture or a wall) is
-    replaced by a new one, so the walker never stands pinned against an obstacle.
-
-    Parameters
-    ----------
-    sample_goal : callable
-        ``sample_goal(rng) -> (x, y)``.
-    pause_s : tuple of float
-        Range of the pause at each goal, seconds.
-    rng : numpy.random.Generator
-        Randomness.
-    give_up_s : float
-        Time allowed to reach a goal.
-    """
-
-    sample_goal: Callable[[np.random.Generator], np.ndarray]
-    pause_s: tuple[float, float]
-    rng: np.random.Generator
-    give_up_s: float = 12.0
-    slot: int = -1
-    goal: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    resume_at: float = 0.0
-    deadline: float = 0.0
-
-    def start(self, world: World) -> None:
-        """Place the walker at a first goal and pick the next."""
-        self.slot = world.add_person(random_person(self.rng, "adult"), self.sample_goal(self.rng))
-        self._next_goal(float(self.rng.uniform(*self.pause_s)))
-
-    def _next_goal(self, now: float) -> None:
-        self.goal = self.sample_goal(self.rng)
-        self.resume_at = now
-        self.deadline = now + self.give_up_s
-
-    def update(self, world: World, t: float) -> None:
-        """Walk towards the goal (round furniture); on arrival pause, then go on."""
-        slot = self.slot
-        if t < self.resume_at:
-            world.v_des[slot] = 0.0
-            return
-        pos = world.pos[slot]
-        if float(np.linalg.norm(self.goal - pos)) < 0.3 or t > self.deadline:
-            self._next_goal(t + float(self.rng.uniform(*self.pause_s)))
-            world.v_des[slot] = 0.0
-            return
-        way = steer_around(world.room, pos, self.goal, float(world.radius[slot]))
-        world.seek(slot, way, world.speed[slot])
 
 
 def simulate_walk(
@@ -242,7 +155,7 @@ def simulate_walk(
         scenario, seed=seed, duration_s=duration_s, sensors=sensors, profile=profile
     )
     views = [SensorView(spec, base.room) for spec in base.sensors]
-    sample = _walk_goals(base.room, views, overlap_preference)
+    sample = walk_goals(base.room, views, overlap_preference)
 
     def director(rng: np.random.Generator) -> Director:
         return CalibrationWalker(sample, pause_s, rng)

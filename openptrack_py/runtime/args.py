@@ -61,6 +61,14 @@ def add_common_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         help="override a config value, e.g. --set sim.seed=3 (repeatable)",
     )
+    add_zenoh_arguments(parser)
+    logs = parser.add_argument_group("logging")
+    logs.add_argument("--log-level", dest="log_level", choices=LOG_LEVELS, default="info")
+    logs.add_argument("--log-format", dest="log_format", choices=("text", "json"), default="text")
+
+
+def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the Zenoh flags (``--mode``, ``-e``, ``-l``, scouting, ``--identity``)."""
     zenoh = parser.add_argument_group("zenoh")
     zenoh.add_argument(
         "--mode", dest="mode", choices=("peer", "client"), help="zenoh session mode"
@@ -96,9 +104,6 @@ def add_common_arguments(parser: argparse.ArgumentParser) -> None:
         help="certificate to authenticate with when the network has a 'security' section "
         "(default: the node name; 'operator' for command-line tools)",
     )
-    logs = parser.add_argument_group("logging")
-    logs.add_argument("--log-level", dest="log_level", choices=LOG_LEVELS, default="info")
-    logs.add_argument("--log-format", dest="log_format", choices=("text", "json"), default="text")
 
 
 def network_from_args(args: argparse.Namespace) -> NetworkConfig:

@@ -54,6 +54,7 @@ from openptrack_py.sim.profiles import IDEAL, NoiseProfile, resolve_profile
 from openptrack_py.sim.sensor_faults import draw_sensor_faults
 from openptrack_py.sim.sensor_spec import SensorSpec
 from openptrack_py.sim.visibility import SensorView
+from openptrack_py.sim.walker import CalibrationWalker, walk_goals
 from openptrack_py.sim.world import Director, Obstacle, Room, World
 
 
@@ -255,6 +256,18 @@ def _installation(seed: int, rng: np.random.Generator) -> tuple:
     return room, sensors, director, 180.0
 
 
+def _walk(seed: int, rng: np.random.Generator) -> tuple:
+    """The installation's art space with one person walking through it to calibrate."""
+    room, sensors, _, _ = _installation(seed, rng)
+    views = [SensorView(SensorSpec.from_config(cfg), room) for cfg in sensors]
+    goals = walk_goals(room, views, overlap_preference=1.0)
+
+    def director(r: np.random.Generator) -> Director:
+        return CalibrationWalker(goals, (0.0, 1.5), r)
+
+    return room, sensors, director, 60.0
+
+
 def _reentry(seed: int, rng: np.random.Generator, people: int = 6) -> tuple:
     room = Room(
         8.0,
@@ -355,6 +368,7 @@ _BUILDERS: dict[str, tuple[Callable[..., tuple], str]] = {
     "uniforms": (_uniforms, "the classroom with everyone in one of two school uniforms"),
     "overhead": (_overhead, "people crossing an entrance hall under 3 ceiling sensors"),
     "corridor": (_corridor, "people walking down a corridor past poster boards and shelves"),
+    "walk": (_walk, "one person walking through the art space to calibrate its sensors"),
 }
 SCENARIO_NAMES = tuple(_BUILDERS)
 _OPTION_MINIMUM = {"people": 0, "children": 1}  # an empty hall is fine, a class is not

@@ -87,6 +87,180 @@ def test_apply_without_a_network_calibration_file_writes_nothing(tmp_path: Path)
     assert "--apply: the network names no 'calibration' file" in done.stderr
 
 
-def test_real_sensors_are_pointed_to_the_library() -> None:
+def test_a_procedure_needs_its_input() -> None:
     done = _cli("checkerboard", "demo")
-    assert done.returncode == 2 and "calibrate_extrinsics" in done.stderr
+    assert done.returncode == 2 and "give one of --sim or --recordings DIR" in done.stderr
+    done = _cli("checkerboard", "demo", "--record", "x")
+    assert done.returncode == 2 and "--record writes a simulated session" in done.stderr
+
+
+def _heading_deg(world_from_camera: np.ndarray) -> float:
+    """The optical axis's heading on the floor, degrees."""
+    axis = world_from_camera[:2, 2]
+    return float(np.degrees(np.arctan2(axis[1], axis[0])))
+
+
+def _recorded_walk(tmp_path: Path) -> tuple[Path, Path, dict[str, np.ndarray]]:
+    """A simulated walk through the demo network written as a user's recording would be.
+
+    ``k2_a`` (the world's anchor) and ``k2_b`` report in the world through the poses the
+    network file gives them, ``k2_c`` in its own floor frame; ``k2_b`` and ``k2_c`` are
+    placed 0.3-0.5 m and 5-8 degrees away from where they are. Returns the network file,
+    the CSV of detections and each sensor's true ``world_from_optical``.
+    """
+    from openptrack_py.calibration.walk import Pose2D
+    from openptrack_py.eval.walk import simulate_walk
+
+    demo = load_network(resolve_config_path("demo"))
+    sensors = [s.model_copy(update={"source": "sim"}) for s in demo.sensors]
+    session = simulate_walk("installation", seed=7, duration_s=60.0, sensors=sensors)
+    truth = {s.id: world_from_optical(s.pose) for s in demo.sensors}
+    off = {"k2_b": (0.4, -0.25, 6.0), "k2_c": (-0.3, 0.3, -8.0)}
+    net = yaml.safe_load(resolve_config_path("demo").read_text())
+    for entry in net["sensors"]:
+        dx, dy, dyaw = off.get(entry["id"], (0.0, 0.0, 0.0))
+        pose = entry["pose"]
+        pose.update(x=pose["x"] + dx, y=pose["y"] + dy, yaw_deg=pose["yaw_deg"] + dyaw)
+        entry["source"] = "camera"
+    net.pop("tracker", None)
+    network = tmp_path / "net.yaml"
+    network.write_text(yaml.safe_dump(net))
+    believed = {e["id"]: Pose2D(e["pose"]["x"], e["pose"]["y"], e["pose"]["yaw_deg"])
+                for e in net["sensors"]}  # fmt: skip
+    lines = ["time,sensor,x,y,confidence,frame"]
+    rows = []
+    for track in session.tracks:
+        own = track.sensor_id == "k2_c"
+        xy = track.xy if own else believed[track.sensor_id].apply(track.xy)
+        frame = track.sensor_id if own else "world"
+        for t, (x, y), c in zip(track.stamps, xy, track.confidence, strict=True):
+            rows.append((t, track.sensor_id, x, y, c, frame))
+    rows.sort(key=lambda r: (r[0], r[1]))
+    lines += [f"{t:.4f},{s},{x:.4f},{y:.4f},{c:.3f},{f}" for t, s, x, y, c, f in rows]
+    detections = tmp_path / "walk.csv"
+    detections.write_text("\n".join(lines) + "\n")
+    return network, detections, truth
+
+
+@pytest.mark.slow
+def test_walk_from_a_recording_places_sensors_the_network_placed_wrongly(tmp_path: Path) -> None:
+    network, detections, truth = _recorded_walk(tmp_path)
+    out = tmp_path / "calibration.yaml"
+    done = _cli("walk", str(network), "--detections", str(detections), "--output", str(out),
+                "--format", "json")  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert {r["sensor"] for r in json.loads(done.stdout)} == {"k2_a", "k2_b", "k2_c"}
+    for sensor_id, entry in load_calibration(out).sensors.items():
+        assert entry.method == "walk"
+        solved = entry.world_from_optical()
+        gap = np.linalg.norm(solved[:2, 3] - truth[sensor_id][:2, 3])
+        turn = abs(_heading_deg(solved) - _heading_deg(truth[sensor_id]))
+        assert gap < 0.10 and turn < 1.5, (sensor_id, gap, turn)
+        assert abs(solved[2, 3] - truth[sensor_id][2, 3]) < 1e-6  # the height is kept
+
+
+def test_walk_from_a_recording_names_what_it_cannot_use(tmp_path: Path) -> None:
+    network = tmp_path / "net.yaml"
+    network.write_text(
+        "sensors:\n  - {id: a, source: camera, pose: {x: 0, y: 0, z: 2.5, pitch_deg: 20}}\n"
+        "  - {id: b, source: camera}\n"
+    )
+    rows = "time,sensor,x,y,frame\n1.0,a,1,1,world\n1.0,b,2,0,b\n1.0,z,2,0,z\n"
+    (tmp_path / "stranger.csv").write_text(rows)
+    (tmp_path / "no_pose.csv").write_text(rows.replace("1.0,z,2,0,z\n", ""))
+    done = _cli("walk", str(network), "--detections", str(tmp_path / "stranger.csv"))
+    assert done.returncode == 2 and "sensors the network does not list: z" in done.stderr
+    done = _cli("walk", str(network), "--detections", str(tmp_path / "no_pose.csv"))
+    assert done.returncode == 2 and "sensor b has no pose in the network file" in done.stderr
+    done = _cli("walk", str(network))
+    assert done.returncode == 2 and "--sim, --detections FILE or --live SECONDS" in done.stderr
+
+
+@pytest.mark.zenoh
+@pytest.mark.slow
+def test_walk_live_calibrates_a_running_network(tmp_path: Path) -> None:
+    """The simulator plays one person walking (3x real time) through the demo's room, its
+    sensors reporting through a calibration 0.3-0.5 m / 6-8 degrees off for two of them;
+    ``calibrate walk --live`` listens over Zenoh and writes poses near the true ones."""
+    from openptrack_py.calibration.files import (
+        CalibrationFile,
+        SensorCalibration,
+        save_calibration,
+    )
+    from tests.conftest import free_port, stop_process
+
+    demo = load_network(resolve_config_path("demo"))
+    off = {"k2_b": (0.4, -0.25, 6.0), "k2_c": (-0.3, 0.3, -8.0)}
+    believed = {}
+    for s in demo.sensors:
+        dx, dy, dyaw = off.get(s.id, (0.0, 0.0, 0.0))
+        pose = s.pose.model_copy(
+            update={"x": s.pose.x + dx, "y": s.pose.y + dy, "yaw_deg": s.pose.yaw_deg + dyaw}
+        )
+        believed[s.id] = SensorCalibration(pose=pose, method="manual")
+    save_calibration(tmp_path / "calibration.yaml", CalibrationFile(sensors=believed))
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    net = yaml.safe_load(resolve_config_path("demo").read_text())
+    net.update(calibration=str(tmp_path / "calibration.yaml"), outputs=[])
+    net["zenoh"]["hub"] = None
+    net["sim"] = {"scenario": "walk", "seed": 3, "profile": "realistic", "speed": 3.0}
+    network = tmp_path / "net.yaml"
+    network.write_text(yaml.safe_dump(net))
+    log = (tmp_path / "sim.log").open("w")
+    sim = subprocess.Popen(
+        [sys.executable, "-m", "openptrack_py.nodes.sim", "-c", str(network), "-l", endpoint,
+         "--no-multicast-scouting"],
+        stdout=log, stderr=subprocess.STDOUT, env=python_env(),
+    )  # fmt: skip
+    out = tmp_path / "solved.yaml"
+    try:
+        done = _cli("walk", str(network), "--live", "22", "-e", endpoint,
+                    "--no-multicast-scouting", "--output", str(out))  # fmt: skip
+    finally:
+        stop_process(sim)
+    assert done.returncode == 0, done.stderr[-2000:] + (tmp_path / "sim.log").read_text()[-2000:]
+    assert "s left | detections k2_a:" in done.stderr  # the live progress
+    for sensor_id, entry in load_calibration(out).sensors.items():
+        solved, truth = entry.world_from_optical(), world_from_optical(demo.sensor(sensor_id).pose)
+        gap = np.linalg.norm(solved[:2, 3] - truth[:2, 3])
+        turn = abs(_heading_deg(solved) - _heading_deg(truth))
+        assert gap < 0.10 and turn < 1.5, (sensor_id, gap, turn)
+
+
+@pytest.mark.slow
+def test_checkerboard_from_each_sensors_recording_of_the_session(tmp_path: Path) -> None:
+    """The session as three sensors' computers record it (a folder each, unsynchronised,
+    the board held still a few frames at each placement, then laid on the floor)."""
+    session = tmp_path / "session"
+    done = _cli("checkerboard", "demo", "--sim", "--placements", "16", "--record", str(session))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert sorted(p.name for p in session.iterdir()) == ["k2_a", "k2_b", "k2_c"]
+    out = tmp_path / "calibration.yaml"
+    done = _cli("checkerboard", "demo", "--recordings", str(session), "--output", str(out),
+                "--format", "json")  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "board seen by" in done.stderr  # the progress, as if live
+    rows = {r["sensor"]: r for r in json.loads(done.stdout)}
+    assert set(rows) == {"k2_a", "k2_b", "k2_c"} and all(r["views"] >= 5 for r in rows.values())
+    # the world is the floor board's (origin at its first corner): sensors are compared
+    # with k2_a, and their height and tilt above the floor directly
+    entries = load_calibration(out).sensors
+    anchor, true_anchor = entries["k2_a"].world_from_optical(), _true_pose("k2_a")
+    for sensor_id, entry in entries.items():
+        solved, truth = entry.world_from_optical(), _true_pose(sensor_id)
+        rel = np.linalg.inv(anchor) @ solved
+        true_rel = np.linalg.inv(true_anchor) @ truth
+        assert np.linalg.norm(rel[:3, 3] - true_rel[:3, 3]) < 0.01, sensor_id
+        cos = (np.trace(rel[:3, :3].T @ true_rel[:3, :3]) - 1) / 2
+        assert np.degrees(np.arccos(min(1.0, cos))) < 0.2, sensor_id
+        assert abs(solved[2, 3] - truth[2, 3]) < 0.01, sensor_id
+        assert abs(solved[2, 2] - truth[2, 2]) < np.radians(0.2), sensor_id  # the tilt
+
+
+def test_checkerboard_recordings_name_a_missing_sensor(tmp_path: Path) -> None:
+    (tmp_path / "k2_a").mkdir()
+    done = _cli("checkerboard", "demo", "--recordings", str(tmp_path))
+    assert done.returncode == 2
+    assert f"no recording for sensor k2_b ({tmp_path / 'k2_b'}), k2_c" in done.stderr
+    done = _cli("checkerboard", "demo", "--recordings", str(tmp_path), "--board", "5x5x0.1")
+    assert done.returncode == 2 and "orientation is ambiguous" in done.stderr

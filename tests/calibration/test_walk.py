@@ -16,8 +16,10 @@ from openptrack_py.calibration.walk import (
     report_in_world,
     tracks_from_batches,
 )
+from openptrack_py.config import Pose
 from openptrack_py.errors import CalibrationError
 from openptrack_py.eval.walk import WalkSession, perturb_poses, simulate_walk
+from openptrack_py.geometry import world_from_optical
 from openptrack_py.messages.detection import Detection, DetectionBatch
 
 # ------------------------------------------------------------------ synthetic walks
@@ -192,6 +194,29 @@ def test_tracks_from_batches_groups_by_sensor() -> None:
     assert tracks[0].stamps.tolist() == [9.9, 9.9, 10.0]
     assert tracks[0].xy[-1].tolist() == [1.0, 2.0]
     assert len(tracks[1]) == 0
+
+
+def test_batches_in_the_world_go_back_to_their_sensors_floor() -> None:
+    """World positions reported through a pose return to the floor frame; a sensor's own
+    frame is kept; a world batch without a pose, or a foreign frame, names the sensor."""
+    pose = Pose(x=2.0, y=1.0, z=2.5, yaw_deg=30.0, pitch_deg=25.0, roll_deg=2.0)
+    floor = np.array([(3.0, 0.5), (4.5, -1.0)])
+    world = Pose2D.from_pose(pose).apply(floor)
+
+    def batch(sensor: str, frame: str, xy: np.ndarray) -> DetectionBatch:
+        dets = tuple(
+            Detection(x=x, y=y, z=0.9, height=1.7, confidence=0.8, distance=3.0) for x, y in xy
+        )
+        return DetectionBatch(sensor, 0, 5.0, frame, dets)
+
+    believed = {"a": world_from_optical(pose)}
+    a, b = tracks_from_batches([batch("a", "world", world), batch("b", "b", floor)], believed)
+    assert np.allclose(a.xy, floor, atol=1e-9)
+    assert np.allclose(b.xy, floor)
+    with pytest.raises(CalibrationError, match="'b' reported in the world frame"):
+        tracks_from_batches([batch("b", "world", world)], believed)
+    with pytest.raises(CalibrationError, match="'a' reported in frame 'other'"):
+        tracks_from_batches([batch("a", "other", world)], believed)
 
 
 def test_plot_walk_writes_a_png(tmp_path) -> None:  # type: ignore[no-untyped-def]

@@ -1,0 +1,126 @@
+"""Board views from a sensor's stream of frames: what a recorded or live session gives.
+
+Step 1 of the checkerboard calibration of Munaro et al., OpenPTrack (§4), on real
+streams: the board is moved through the space and held still at each placement while
+the sensors capture it. The sensors are not synchronised, so a view is only usable while
+the board is still: :class:`StillBoardViews` finds the board in each frame
+(:func:`~openptrack_py.calibration.checkerboard.detect_board`), follows runs of frames in
+which its corners stay within ``still_px`` of the run's first, and turns each run of at
+least ``min_frames`` frames into one view at the run's middle stamp, its corners
+averaged (:func:`~openptrack_py.calibration.checkerboard.average_views`: image noise
+falls as the square root of the frames). A moving board, a board seen in too few frames
+and a frame whose board was not found end a run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from openptrack_py.calibration.checkerboard import (
+    BoardView,
+    Checkerboard,
+    average_views,
+    detect_board,
+)
+from openptrack_py.calibration.observations import BoardObservation
+from openptrack_py.detection.frame import Frame, Intrinsics
+
+__all__ = ["StillBoardViews", "board_observations"]
+
+
+@dataclass
+class StillBoardViews:
+    """Turns one sensor's frames into views of the board held still.
+
+    Parameters
+    ----------
+    sensor_id : str
+        The sensor.
+    sensor_type : str
+        Its type (which image the board is found on).
+    board : Checkerboard
+        The board.
+    still_px : float
+        Largest corner movement from the run's first frame, pixels.
+    min_frames : int
+        Fewest frames of one still run.
+    max_gap_s : float
+        A longer gap between two frames ends a run.
+    """
+
+    sensor_id: str
+    sensor_type: str
+    board: Checkerboard
+    still_px: float = 1.0
+    min_frames: int = 3
+    max_gap_s: float = 0.25
+    frames: int = 0
+    found: int = 0
+    _run: list[tuple[float, BoardView]] = field(default_factory=list)
+    _intrinsics: Intrinsics | None = None
+
+    def add(self, frame: Frame) -> tuple[BoardObservation | None, BoardView | None]:
+        """Take the next frame; return a view the frame completed (if any) and its own.
+
+        The first is the still run the frame ended (a :class:`BoardObservation`), the
+        second what was found in this frame (``None`` if no board), for a progress view.
+        """
+        self.frames += 1
+        self._intrinsics = frame.intrinsics or self._intrinsics
+        view = detect_board(frame, self.board, self.sensor_type)
+        done = None
+        if view is None:
+            done = self.flush()
+            return done, None
+        self.found += 1
+        if self._run and not self._continues(frame.stamp, view):
+            done = self.flush()
+        self._run.append((frame.stamp, view))
+        return done, view
+
+    def _continues(self, stamp: float, view: BoardView) -> bool:
+        first = self._run[0][1]
+        last_stamp = self._run[-1][0]
+        moved = float(np.abs(view.corners - first.corners).max())
+        return moved <= self.still_px and stamp - last_stamp <= self.max_gap_s
+
+    @property
+    def intrinsics(self) -> Intrinsics | None:
+        """The sensor's camera model, from its frames (``None`` before any frame had one)."""
+        return self._intrinsics
+
+    def flush(self) -> BoardObservation | None:
+        """End the current run: its view if it was long enough."""
+        run, self._run = self._run, []
+        if len(run) < self.min_frames or self._intrinsics is None:
+            return None
+        view = average_views([v for _, v in run], self.board, self._intrinsics)
+        stamps = [t for t, _ in run]
+        stamp = 0.5 * (stamps[0] + stamps[-1])
+        return BoardObservation(self.sensor_id, stamp, view.corners, view.camera_from_board)
+
+
+def board_observations(
+    frames: Iterable[Frame],
+    sensor_id: str,
+    sensor_type: str,
+    board: Checkerboard,
+    **options: float,
+) -> tuple[list[BoardObservation], Intrinsics | None]:
+    """Every still view of the board in one sensor's frames, and the sensor's intrinsics.
+
+    ``options`` are :class:`StillBoardViews`'s ``still_px``, ``min_frames``, ``max_gap_s``.
+    """
+    views = StillBoardViews(sensor_id, sensor_type, board, **options)  # type: ignore[arg-type]
+    out = []
+    for frame in frames:
+        done, _ = views.add(frame)
+        if done is not None:
+            out.append(done)
+    last = views.flush()
+    if last is not None:
+        out.append(last)
+    return out, views.intrinsics
