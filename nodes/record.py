@@ -1,8 +1,11 @@
-"""Recorder node: writes every valid message on the chosen keys to a JSON-lines file.
+"""Recorder node: writes every valid message on the chosen keys to an MCAP or JSON-lines file.
+
+An MCAP recording also keeps the network file (its ``network`` metadata), so
+``openptrack retrack`` runs the tracker the site ran.
 
 Typical usage::
 
-    openptrack node record -c demo --set recorder.path=runs/today.jsonl
+    openptrack node record -c demo --set recorder.path=runs/today.mcap
 """
 
 from __future__ import annotations
@@ -23,12 +26,15 @@ def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     rec_cfg = cfg.recorder or RecorderConfig()
     path = Path(args.output) if args.output else rec_cfg.path
     keys = args.key or [node.keys.relative(k) for k in rec_cfg.keys]
-    Recorder(node, path, keys).run()
+    metadata = {"network": {"json": cfg.model_dump_json()}}
+    Recorder(node, path, keys, metadata).run()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the recorder node."""
-    parser = node_parser("openptrack node record", "Record messages to a JSON-lines file.")
+    parser = node_parser(
+        "openptrack node record", "Record messages to an MCAP or JSON-lines file."
+    )
     parser.add_argument("-o", "--output", help="output file (default: recorder.path)")
     parser.add_argument(
         "-k", "--key", action="append", help="full key expression to record (repeatable)"

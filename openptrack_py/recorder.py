@@ -1,20 +1,23 @@
-"""Record messages to a JSON-lines file, one validated message per line.
+"""Record a site's messages to a file: MCAP (``.mcap``) or JSON lines (``.jsonl``).
 
-Each line is ``{"t": <receive time>, "key": "<key>", "msg": <the message as sent>}``.
-Messages that fail validation are counted as malformed and not written, so a
-recording only ever holds messages that decode.
+Every valid message on the chosen keys goes to the file with its receive time and key
+(:mod:`openptrack_py.recordings.files`): an MCAP file has one channel per key with its
+message schema and starts with metadata (the site, the keys, and the network file, so
+``openptrack retrack`` runs the tracker the site ran); a JSON-lines file has one
+``{"t", "key", "msg"}`` object per line. Messages that fail validation are counted as
+malformed and not written, so a recording only ever holds messages that decode.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from pathlib import Path
-from typing import IO
 
-import orjson
-
-from openptrack_py.errors import ConfigError
+from openptrack_py.calibration.files import parse_entry_payload
+from openptrack_py.errors import CalibrationError, ConfigError, WireFormatError
 from openptrack_py.messages.by_key import TOPICS, decoder_for_key
+from openptrack_py.recordings import RecordingWriter, open_writer
 from openptrack_py.runtime.node import Inbox, Node, Received
 
 
@@ -31,11 +34,21 @@ def unique_path(path: Path) -> Path:
     return candidate
 
 
+def _calibration_entry(payload: bytes) -> object:
+    try:
+        return parse_entry_payload(payload)
+    except CalibrationError as exc:  # counted as malformed, like any bad message
+        raise WireFormatError(str(exc)) from None
+
+
 def _validated_by(expr: str):
-    decode = decoder_for_key(expr)
+    chunks = expr.split("/")
+    is_calibration = len(chunks) >= 3 and chunks[2] == "calibration"
+    decode = _calibration_entry if is_calibration else decoder_for_key(expr)
     if decode is None:
         raise ConfigError(
-            f"recorder.keys: {expr!r} names no known topic (allowed: {', '.join(TOPICS)})"
+            f"recorder.keys: {expr!r} names no known topic "
+            f"(allowed: {', '.join([*TOPICS, 'calibration'])})"
         )
 
     def validate(payload: bytes) -> bytes:
@@ -57,6 +70,8 @@ class Recorder:
     keyexprs : list of str
         Full key expressions to record, each below a known topic
         (``opt/<site>/detections/**``, ``opt/<site>/tracks``...).
+    metadata : mapping of str to mapping, optional
+        Further metadata records for an MCAP file (e.g. ``network``: the network file).
 
     Raises
     ------
@@ -64,10 +79,18 @@ class Recorder:
         If a key expression names no known topic.
     """
 
-    def __init__(self, node: Node, path: Path, keyexprs: list[str]) -> None:
+    def __init__(
+        self,
+        node: Node,
+        path: Path,
+        keyexprs: list[str],
+        metadata: Mapping[str, Mapping[str, str]] | None = None,
+    ) -> None:
         self.node = node
         self.lines = 0
+        self.metadata = dict(metadata or {})
         validators = [(expr, _validated_by(expr)) for expr in keyexprs]
+        self.keyexprs = list(keyexprs)
         self.path = unique_path(Path(path))
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._inbox: Inbox[Received[bytes]] = Inbox(
@@ -76,25 +99,26 @@ class Recorder:
         for expr, validate in validators:
             node.subscribe(expr, validate, inbox=self._inbox)
 
-    def _write(self, out: IO[bytes], items: list[Received[bytes]]) -> None:
+    def _write(self, out: RecordingWriter, items: list[Received[bytes]]) -> None:
         for item in items:
-            out.write(b'{"t":' + orjson.dumps(item.received) + b',"key":' + orjson.dumps(item.key))
-            out.write(b',"msg":' + item.message + b"}\n")
+            out.write(item.received, item.key, item.message)
             self.lines += 1
             self.node.counters.inc("out")
         if items:
-            out.flush()  # what was received is on disk before the next wait
+            out.flush()  # what was received is in the file before the next wait
 
     def run(self) -> None:
         """Write until the node stops, then write what is still queued."""
         self.node.log.info("recording", extra={"fields": {"path": str(self.path)}})
-        with self.path.open("ab") as out:
+        info = {
+            "site": self.node.keys.site,
+            "keys": " ".join(self.keyexprs),
+            "started": f"{time.time():.6f}",
+        }
+        out = open_writer(self.path, {"openptrack": info, **self.metadata})
+        try:
             while self.node.running:
                 self._write(out, self._inbox.drain(timeout=0.2))
             self._write(out, self._inbox.drain(timeout=0))
-
-
-def read_recording(path: Path) -> list[dict]:
-    """Load a recording written by :class:`Recorder`."""
-    with Path(path).open("rb") as f:
-        return [orjson.loads(line) for line in f if line.strip()]
+        finally:
+            out.close()

@@ -7,13 +7,13 @@ package above it; packages on one layer do not import each other):
 1. ``config``
 2. ``geometry``, ``messages``
 
-3. ``transport``
+3. ``transport``, ``recordings`` (the files a site's messages are recorded in)
 4. ``security`` (a secured session's settings, from the network file and the keys)
 5. ``runtime``
 6. ``detection``, ``tracking``
-7. ``output``, ``recorder``, ``calibration`` (the calibration file, its service on the
-   bus, the solvers)
-8. ``sim``
+7. ``output``, ``calibration`` (the calibration file, its service on the bus, the
+   solvers), ``analytics``, ``replayer``
+8. ``sim``, ``recorder`` (it checks calibration entries too)
 9. ``eval``
 10. ``launch``, ``nodes`` (the node entry points, shipped as ``openptrack_py.nodes``)
 11. ``cli``
@@ -44,7 +44,10 @@ LAYERS: dict[str, int] = {
     "detection": 6,
     "tracking": 6,
     "output": 7,
-    "recorder": 7,
+    "recorder": 8,
+    "recordings": 3,
+    "analytics": 7,
+    "replayer": 7,
     "calibration": 7,
     "sim": 8,
     "eval": 9,

@@ -8,10 +8,11 @@ import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
+import orjson
 import pytest
 
 from openptrack_py.messages import decode_detection_batch
-from openptrack_py.recorder import read_recording
+from openptrack_py.recordings import read_recording
 from tests.conftest import free_port, wait_for
 
 pytestmark = pytest.mark.zenoh
@@ -52,10 +53,10 @@ def test_thousand_batches_arrive_complete_and_in_order(
     assert publisher.wait(timeout=60) == 0, Path(publisher.log_path).read_text()  # type: ignore[attr-defined]
     wait_for(lambda: out.exists() and len(out.read_bytes().splitlines()) >= 1000, 30, "1000 lines")
     log = _stop(recorder)
-    lines = read_recording(out)
-    seqs = [line["msg"]["seq"] for line in lines]
+    lines = list(read_recording(out))
+    seqs = [orjson.loads(m.payload)["seq"] for m in lines]
     assert seqs == list(range(1000)), "lost or reordered batches"
-    assert all(line["key"] == "opt/default/detections/k1" for line in lines)
+    assert all(m.key == "opt/default/detections/k1" for m in lines)
     counters = _final_counters(log)
     assert counters["in"] == 1000 and counters["malformed"] == 0 and counters["dropped"] == 0
 
@@ -74,12 +75,10 @@ def test_malformed_bytes_are_counted_dropped_and_survived(
     wait_for(lambda: out.exists() and len(out.read_bytes().splitlines()) >= 20, 30, "20 lines")
     assert recorder.poll() is None, "the recorder died of bad input"
     log = _stop(recorder)
-    lines = read_recording(out)
-    assert [line["msg"]["seq"] for line in lines] == list(range(20))
-    for line in lines:  # only valid messages were written
-        decode_detection_batch(
-            __import__("orjson").dumps(line["msg"])  # round-trip through the strict decoder
-        )
+    lines = list(read_recording(out))
+    assert [orjson.loads(m.payload)["seq"] for m in lines] == list(range(20))
+    for m in lines:  # only valid messages were written: the strict decoder takes them
+        decode_detection_batch(m.payload)
     counters = _final_counters(log)
     assert counters["malformed"] == 4 and counters["in"] == 20
     # rate-limited logging: one warning line for the burst, naming the first problem

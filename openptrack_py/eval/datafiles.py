@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import math
 import re
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from itertools import chain
@@ -28,6 +29,7 @@ import orjson
 
 from openptrack_py.errors import ConfigError, WireFormatError
 from openptrack_py.messages.fields import MAX_NAME_LEN, NAME_RE
+from openptrack_py.recordings import read_recording
 
 TIME_BASE_S = 1.0e9
 """Added to every file time, so that times from any origin are valid UNIX stamps."""
@@ -164,8 +166,8 @@ class Row:
 
 def _suffix(path: Path) -> str:
     suffix = path.suffix.lower()
-    if suffix not in CSV_SUFFIXES + JSON_LINES_SUFFIXES:
-        allowed = ", ".join(CSV_SUFFIXES + JSON_LINES_SUFFIXES)
+    if suffix not in CSV_SUFFIXES + JSON_LINES_SUFFIXES + (".mcap",):
+        allowed = ", ".join(CSV_SUFFIXES + JSON_LINES_SUFFIXES + (".mcap",))
         raise ExternalFileError(
             path, None, None, f"unknown format {suffix!r} (allowed: {allowed})"
         )
@@ -240,9 +242,11 @@ def _json_lines(path: Path) -> Iterator[tuple[int, dict]]:
 
 
 def read_records(path: Path, columns: tuple[str, ...], required: tuple[str, ...]) -> Records:
-    """The records of a file: rows (CSV or JSON lines) or recorder lines."""
+    """The records of a file: rows (CSV or JSON lines) or a recording (MCAP or lines)."""
     if _suffix(path) in CSV_SUFFIXES:
         return Records(rows=_csv_rows(path, columns, required))
+    if _suffix(path) == ".mcap":
+        return Records(recording=_mcap_recording(path))
     lines = _json_lines(path)
     first = next(lines, None)
     if first is None:
@@ -314,6 +318,16 @@ def _recording(path: Path, lines: Iterator[tuple[int, dict]]) -> Iterator[Record
         chunks = key.split("/")
         topic = "/".join(chunks[2:]) if len(chunks) >= 3 and chunks[0] == "opt" else ""
         yield Recorded(path, line, row.time("t"), topic, orjson.dumps(obj["msg"]))
+
+
+def _mcap_recording(path: Path) -> Iterator[Recorded]:
+    """An MCAP recording's messages (up to any damage, which is reported as a warning)."""
+    recording = read_recording(path)
+    for message in recording:
+        row = Row(path, message.index, {"t": message.received})
+        yield Recorded(path, message.index, row.time("t"), message.topic, message.payload)
+    if recording.stopped:
+        warnings.warn(recording.stopped, stacklevel=2)
 
 
 def check_order(row: Row, previous: float | None, now: float, what: str, rule: str) -> None:

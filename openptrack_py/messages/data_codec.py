@@ -195,8 +195,9 @@ _TRACK_KEYS = frozenset(
     }
 )
 _TRACK_BATCH_KEYS = frozenset(
-    {"v", "kind", "stamp", "seq", "frame_id", "tracks", "alive_ids", "max_id"}
+    {"v", "kind", "stamp", "seq", "frame_id", "tracks", "alive_ids", "max_id", "source"}
 )
+_SOURCE_KEYS = frozenset({"sensor_id", "seq"})
 
 
 def track_dict(t: Track) -> dict[str, Any]:
@@ -241,18 +242,19 @@ def encode_track_batch(batch: TrackBatch) -> bytes:
         If a number is NaN or infinite.
     """
     check_finite("track batch", (batch.stamp,), "stamp")
-    return dump_message(
-        {
-            "v": SCHEMA_VERSION,
-            "kind": "tracks",
-            "stamp": batch.stamp,
-            "seq": batch.seq,
-            "frame_id": batch.frame_id,
-            "tracks": [track_dict(t) for t in batch.tracks],
-            "alive_ids": list(batch.alive_ids),
-            "max_id": batch.max_id,
-        }
-    )
+    obj: dict[str, Any] = {
+        "v": SCHEMA_VERSION,
+        "kind": "tracks",
+        "stamp": batch.stamp,
+        "seq": batch.seq,
+        "frame_id": batch.frame_id,
+        "tracks": [track_dict(t) for t in batch.tracks],
+        "alive_ids": list(batch.alive_ids),
+        "max_id": batch.max_id,
+    }
+    if batch.source is not None:
+        obj["source"] = {"sensor_id": batch.source[0], "seq": batch.source[1]}
+    return dump_message(obj)
 
 
 def _decode_track(obj: Any, path: str) -> Track:
@@ -300,7 +302,15 @@ def decode_track_batch(payload: bytes | bytearray | memoryview | str) -> TrackBa
         tracks=tuple(_decode_track(t, f"tracks[{i}].") for i, t in enumerate(items)),
         alive_ids=read_int_list(obj, "alive_ids", "", 1, MAX_ID, MAX_ITEMS),
         max_id=read_int(obj, "max_id", "", 0, MAX_ID),
+        source=_decode_source(obj.get("source")),
     )
+
+
+def _decode_source(obj: Any) -> tuple[str, int] | None:
+    if obj is None:
+        return None
+    check_keys(obj, _SOURCE_KEYS, "source.")
+    return read_name(obj, "sensor_id", "source."), read_int(obj, "seq", "source.")
 
 
 # ---------------------------------------------------------------------- ground truth

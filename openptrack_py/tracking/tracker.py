@@ -198,11 +198,12 @@ class Tracker:
     def step(self, batch: DetectionBatch) -> TrackBatch:
         """Apply one detection batch; return the tracks after it."""
         self.counters["steps"] += 1
+        source = (batch.sensor_id, batch.seq)
         if self.time is not None and batch.stamp < self.time:
             self._apply_late(batch)
-            return self.output(self.time)
+            return self.output(self.time, source)
         self._advance(batch)
-        return self.output(batch.stamp)
+        return self.output(batch.stamp, source)
 
     def adopt_state(self, other: Tracker) -> None:
         """Take over ``other``'s tracks, clock and id counter (after a reconfiguration).
@@ -239,11 +240,12 @@ class Tracker:
                 except Exception:  # a role changed since: it starts afresh
                     log.warning("tracker role %s could not resume its state", type(role).__name__)
 
-    def output(self, t: float) -> TrackBatch:
+    def output(self, t: float, source: tuple[str, int] | None = None) -> TrackBatch:
         """The tracks as a message (confirmed ones unless ``publish_tentative``).
 
         ``alive_ids`` are exactly the ids of the tracks in the message and ``max_id``
         the highest id ever published: a client never hears of an id it was not shown.
+        ``source`` names the batch the step applied (sensor id, ``seq``).
         """
         self.seq += 1
         tracks = published_tracks(self.table, t, self.params)
@@ -256,6 +258,7 @@ class Tracker:
             tracks=tuple(self.identity.annotate(tracks)),
             alive_ids=ids,
             max_id=self.max_published_id,
+            source=source,
         )
 
     # ------------------------------------------------------- steps and replays
