@@ -13,8 +13,9 @@ from openptrack_py.cli import available_nodes, build_parser
 from tests.conftest import ROOT, python_env
 
 SUBCOMMANDS = [
-    "launch", "node", "status", "echo", "config", "roster", "eval", "scenarios", "show-config",
-    "record-sensor", "detect", "eval-detector", "calibrate", "certs",
+    "launch", "node", "status", "echo", "config", "roster", "eval", "record", "replay",
+    "retrack", "scenarios", "show-config", "record-sensor", "detect", "eval-detector",
+    "calibrate", "certs",
 ]  # fmt: skip
 
 

@@ -50,7 +50,7 @@ TRACKS = TrackBatch(
     T0, 3, "world",
     (Track(id=4, x=1.0, y=2.0, z=0.9, height=1.7, vx=0.1, vy=0.0, age=2.5, confidence=0.9,
            visibility=1, stable_id=10004, identity="Ada"),),
-    (4,), 4, ("k2_a", 7),
+    (4,), 4, ("k2_a", 7, T0),
 )  # fmt: skip
 TRUTH = GroundTruthFrame(T0, 9, (PersonState(1, 1.0, 2.0, 1.7, 0.5, 0.0, "adult", True),))
 

@@ -10,6 +10,9 @@ Subcommands::
     openptrack eval --scenario NAME --seed N                 score a tracker on a scenario
     openptrack scenarios                                     list the simulated scenarios
     openptrack show-config NETWORK                           the validated network file
+    openptrack record [-c NETWORK] [-o FILE.mcap]            record a running site
+    openptrack replay FILE [--speed X] [--loop]              put a recording back on the bus
+    openptrack retrack FILE [--set KEY=VALUE] [-o OUT]       re-run the tracker on a recording
     openptrack record-sensor SOURCE OUTDIR                   record a depth source to a folder
     openptrack detect INPUT                                  detect people in depth frames
     openptrack eval-detector --scenario NAME                 score the detector on renderings
@@ -37,7 +40,10 @@ from openptrack_py.cli import (
     eval_tracker,
     launch,
     node,
+    record,
     record_sensor,
+    replay,
+    retrack,
     roster,
     scenarios,
     show_config,
@@ -58,6 +64,9 @@ COMMANDS = (
     configure,
     roster,
     eval_tracker,
+    record,
+    replay,
+    retrack,
     scenarios,
     show_config,
     record_sensor,

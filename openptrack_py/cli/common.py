@@ -97,3 +97,46 @@ def detector_config(args: argparse.Namespace) -> DetectorConfig:
                 )
             overrides += ["ground.mode=calibration", f"ground.plane=[{','.join(map(str, plane))}]"]
     return load_config(DetectorConfig, args.detector_config, overrides)
+
+
+class ProgressLine:
+    """One status line on stderr: rewritten in place on a terminal, a line each otherwise.
+
+    Parameters
+    ----------
+    every_s : float
+        Least time between two lines when not on a terminal (logs stay short).
+    """
+
+    def __init__(self, every_s: float = 5.0) -> None:
+        import sys
+        import time
+
+        self._stream = sys.stderr
+        self._tty = self._stream.isatty()
+        self._every_s = every_s
+        self._clock = time.monotonic
+        self._last = -float("inf")
+        self._shown = False
+
+    def show(self, text: str) -> None:
+        """Show ``text`` (rate-limited off a terminal)."""
+        if not self._tty:
+            if self._clock() - self._last < self._every_s:
+                return
+            self._last = self._clock()
+        end = "" if self._tty else "\n"
+        print(("\r\x1b[2K" if self._tty else "") + text, end=end, file=self._stream, flush=True)
+        self._shown = True
+
+    def done(self) -> None:
+        """End the line on a terminal."""
+        if self._tty and self._shown:
+            print(file=self._stream, flush=True)
+
+
+def bar(fraction: float, width: int = 24) -> str:
+    """A text progress bar such as ``[#########-------]  52%``."""
+    fraction = min(max(fraction, 0.0), 1.0)
+    filled = round(fraction * width)
+    return f"[{'#' * filled}{'-' * (width - filled)}] {100 * fraction:3.0f}%"

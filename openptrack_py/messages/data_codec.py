@@ -197,7 +197,7 @@ _TRACK_KEYS = frozenset(
 _TRACK_BATCH_KEYS = frozenset(
     {"v", "kind", "stamp", "seq", "frame_id", "tracks", "alive_ids", "max_id", "source"}
 )
-_SOURCE_KEYS = frozenset({"sensor_id", "seq"})
+_SOURCE_KEYS = frozenset({"sensor_id", "seq", "stamp"})
 
 
 def track_dict(t: Track) -> dict[str, Any]:
@@ -253,7 +253,9 @@ def encode_track_batch(batch: TrackBatch) -> bytes:
         "max_id": batch.max_id,
     }
     if batch.source is not None:
-        obj["source"] = {"sensor_id": batch.source[0], "seq": batch.source[1]}
+        sensor_id, seq, stamp = batch.source
+        check_finite("track batch", (stamp,), "source.stamp")
+        obj["source"] = {"sensor_id": sensor_id, "seq": seq, "stamp": stamp}
     return dump_message(obj)
 
 
@@ -306,11 +308,15 @@ def decode_track_batch(payload: bytes | bytearray | memoryview | str) -> TrackBa
     )
 
 
-def _decode_source(obj: Any) -> tuple[str, int] | None:
+def _decode_source(obj: Any) -> tuple[str, int, float] | None:
     if obj is None:
         return None
     check_keys(obj, _SOURCE_KEYS, "source.")
-    return read_name(obj, "sensor_id", "source."), read_int(obj, "seq", "source.")
+    return (
+        read_name(obj, "sensor_id", "source."),
+        read_int(obj, "seq", "source."),
+        read_float(obj, "stamp", "source.", 0.0, MAX_STAMP_S),
+    )
 
 
 # ---------------------------------------------------------------------- ground truth

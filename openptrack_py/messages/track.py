@@ -75,10 +75,11 @@ class TrackBatch:
         Ids of every track the tracker holds, published or not.
     max_id : int
         Highest id ever issued (0 before the first track).
-    source : (str, int), optional
-        The detection batch this step applied: its sensor id and ``seq`` (``None`` for a
-        step without one). With it a recording says exactly what the tracker took, in
-        which order, so ``openptrack retrack`` can take it again.
+    source : (str, int, float), optional
+        The detection batch this step applied: its sensor id, ``seq`` and the capture
+        time the tracker used (after clock alignment); ``None`` for a step without one.
+        With it a recording says exactly what the tracker took, in which order, so
+        ``openptrack retrack`` can take it again.
     """
 
     stamp: float
@@ -87,7 +88,7 @@ class TrackBatch:
     tracks: tuple[Track, ...] = ()
     alive_ids: tuple[int, ...] = ()
     max_id: int = 0
-    source: tuple[str, int] | None = None
+    source: tuple[str, int, float] | None = None
 
 
 @dataclass(frozen=True, slots=True)

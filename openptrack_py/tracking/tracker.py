@@ -198,7 +198,7 @@ class Tracker:
     def step(self, batch: DetectionBatch) -> TrackBatch:
         """Apply one detection batch; return the tracks after it."""
         self.counters["steps"] += 1
-        source = (batch.sensor_id, batch.seq)
+        source = (batch.sensor_id, batch.seq, batch.stamp)
         if self.time is not None and batch.stamp < self.time:
             self._apply_late(batch)
             return self.output(self.time, source)
@@ -240,12 +240,12 @@ class Tracker:
                 except Exception:  # a role changed since: it starts afresh
                     log.warning("tracker role %s could not resume its state", type(role).__name__)
 
-    def output(self, t: float, source: tuple[str, int] | None = None) -> TrackBatch:
+    def output(self, t: float, source: tuple[str, int, float] | None = None) -> TrackBatch:
         """The tracks as a message (confirmed ones unless ``publish_tentative``).
 
         ``alive_ids`` are exactly the ids of the tracks in the message and ``max_id``
         the highest id ever published: a client never hears of an id it was not shown.
-        ``source`` names the batch the step applied (sensor id, ``seq``).
+        ``source`` names the batch the step applied (sensor id, ``seq``, stamp).
         """
         self.seq += 1
         tracks = published_tracks(self.table, t, self.params)
