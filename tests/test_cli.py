@@ -14,7 +14,7 @@ from tests.conftest import ROOT, python_env
 
 SUBCOMMANDS = [
     "launch", "node", "status", "echo", "config", "roster", "eval", "record", "replay",
-    "retrack", "scenarios", "show-config", "record-sensor", "detect", "eval-detector",
+    "retrack", "analyze", "scenarios", "show-config", "record-sensor", "detect", "eval-detector",
     "calibrate", "certs",
 ]  # fmt: skip
 

@@ -94,7 +94,8 @@ def test_no_file_gives_defaults() -> None:
         (
             "sensros=[]",
             "sensros: unknown key; did you mean 'sensors'? (allowed: calibration, detector, "
-            "outputs, recorder, security, sensors, sim, site, stats_interval_s, tracker, zenoh)",
+            "doors, outputs, recorder, security, sensors, sim, site, stats_interval_s, "
+            "tracker, zenoh, zones)",
         ),
         (
             "sim.sceanrio=crowd",

@@ -123,6 +123,7 @@ class Chromium:
         self._buf = b""
         self._id = 0
         self.session: str | None = None
+        self.events: list[dict] = []
 
     def call(self, method: str, params: dict | None = None, timeout: float = 15.0) -> dict:
         self._id += 1
@@ -135,6 +136,8 @@ class Chromium:
             while b"\0" in self._buf:
                 raw, self._buf = self._buf.split(b"\0", 1)
                 reply = orjson.loads(raw)
+                if "method" in reply and "id" not in reply:
+                    self.events.append(reply)  # what the page said meanwhile
                 if reply.get("id") == self._id:
                     if "error" in reply:
                         raise RuntimeError(f"{method}: {reply['error']}")

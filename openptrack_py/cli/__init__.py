@@ -13,6 +13,7 @@ Subcommands::
     openptrack record [-c NETWORK] [-o FILE.mcap]            record a running site
     openptrack replay FILE [--speed X] [--loop]              put a recording back on the bus
     openptrack retrack FILE [--set KEY=VALUE] [-o OUT]       re-run the tracker on a recording
+    openptrack analyze FILE [--html REPORT] [-c NETWORK]     behaviour analytics of a recording
     openptrack record-sensor SOURCE OUTDIR                   record a depth source to a folder
     openptrack detect INPUT                                  detect people in depth frames
     openptrack eval-detector --scenario NAME                 score the detector on renderings
@@ -31,6 +32,7 @@ from collections.abc import Sequence
 
 from openptrack_py import __version__
 from openptrack_py.cli import (
+    analyze,
     calibrate,
     certs,
     configure,
@@ -67,6 +69,7 @@ COMMANDS = (
     record,
     replay,
     retrack,
+    analyze,
     scenarios,
     show_config,
     record_sensor,

@@ -45,6 +45,7 @@ from openptrack_py.config.output import (
     UdpSinkConfig,
     WebConfig,
 )
+from openptrack_py.config.places import DoorConfig, ZoneConfig
 from openptrack_py.config.recorder import RecorderConfig
 from openptrack_py.config.security import SecurityConfig
 from openptrack_py.config.sensors import Pose, PoseError, SensorConfig
@@ -59,6 +60,7 @@ __all__ = [
     "ROBUSTNESS_OFF",
     "BackgroundConfig",
     "DetectorConfig",
+    "DoorConfig",
     "GroundConfig",
     "HogConfig",
     "IdentityConfig",
@@ -79,6 +81,7 @@ __all__ = [
     "UdpSinkConfig",
     "WebConfig",
     "ZenohConfig",
+    "ZoneConfig",
     "apply_overrides",
     "load_config",
     "load_network",

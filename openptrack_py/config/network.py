@@ -9,6 +9,7 @@ from pydantic import Field, model_validator
 from openptrack_py.config.base import Name, StrictModel
 from openptrack_py.config.detector import DetectorConfig
 from openptrack_py.config.output import OutputConfig
+from openptrack_py.config.places import DoorConfig, ZoneConfig
 from openptrack_py.config.recorder import RecorderConfig
 from openptrack_py.config.security import SecurityConfig
 from openptrack_py.config.sensors import SensorConfig
@@ -65,6 +66,10 @@ class NetworkConfig(StrictModel):
     security : SecurityConfig, optional
         Mutual TLS and access control for every session; every Zenoh endpoint must then
         be ``tls/``.
+    zones : list of ZoneConfig
+        Named areas of the floor (analytics, live zone events); names unique.
+    doors : list of DoorConfig
+        Named doorways (entries and exits); names unique.
     """
 
     site: Name = "default"
@@ -78,6 +83,8 @@ class NetworkConfig(StrictModel):
     detector: DetectorConfig = Field(default_factory=DetectorConfig)
     stats_interval_s: float = Field(2.0, gt=0.0, le=3600.0)
     security: SecurityConfig | None = None
+    zones: list[ZoneConfig] = Field(default_factory=list)
+    doors: list[DoorConfig] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _consistent(self) -> NetworkConfig:
@@ -85,6 +92,11 @@ class NetworkConfig(StrictModel):
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:
             raise ValueError(f"sensor ids must be unique; repeated: {', '.join(duplicates)}")
+        for section, items in (("zones", self.zones), ("doors", self.doors)):
+            given = [item.name for item in items]
+            again = sorted({n for n in given if given.count(n) > 1})
+            if again:
+                raise ValueError(f"{section} names must be unique; repeated: {', '.join(again)}")
         names = [o.name for o in self.outputs]
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
