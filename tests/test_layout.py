@@ -5,7 +5,7 @@ package above it; packages on one layer do not import each other):
 
 0. ``errors``, ``sensor_types``
 1. ``config``
-2. ``geometry``, ``messages``
+2. ``geometry``, ``messages``, ``zones`` (who is in which zone, who crossed a door)
 
 3. ``transport``, ``recordings`` (the files a site's messages are recorded in)
 4. ``security`` (a secured session's settings, from the network file and the keys)
@@ -38,6 +38,7 @@ LAYERS: dict[str, int] = {
     "config": 1,
     "geometry": 2,
     "messages": 2,
+    "zones": 2,
     "transport": 3,
     "security": 4,
     "runtime": 5,

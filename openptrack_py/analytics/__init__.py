@@ -9,6 +9,6 @@ HTML report (:mod:`~openptrack_py.analytics.report`).
 
 from openptrack_py.analytics.analysis import Analysis, analyze
 from openptrack_py.analytics.frames import PeopleFrame, frames_from_recording
-from openptrack_py.analytics.places import ZoneTracker
+from openptrack_py.zones import ZoneTracker
 
 __all__ = ["Analysis", "PeopleFrame", "ZoneTracker", "analyze", "frames_from_recording"]

@@ -4,7 +4,7 @@
 tallies (:mod:`~openptrack_py.analytics.people`, :mod:`~openptrack_py.analytics.pairs`,
 :mod:`~openptrack_py.analytics.places`); each frame counts for the time to the next one,
 up to ``max_gap_s``. Memory does not grow with the recording's length, only with the
-number of people and places. The result holds every figure, as tables
+number of different people (ids) and places. The result holds every figure, as tables
 (:meth:`Analysis.tables`) and for the report (:mod:`~openptrack_py.analytics.report`).
 """
 
@@ -50,6 +50,9 @@ class Analysis:
         The zones' polygons (for plots).
     door_segments : dict of str to ndarray
         The doors' ends (for plots).
+    pair_frames_skipped : int
+        Frames with too many people for pairs
+        (:class:`~openptrack_py.analytics.pairs.PairTally`).
     """
 
     start: float
@@ -64,6 +67,7 @@ class Analysis:
     cell_m: float
     zone_polygons: dict[str, np.ndarray]
     door_segments: dict[str, np.ndarray]
+    pair_frames_skipped: int = 0
 
     @property
     def duration_s(self) -> float:
@@ -156,6 +160,7 @@ def analyze(
         cell_m=cell_m,
         zone_polygons={z.name: np.array(z.polygon, dtype=float) for z in zones},
         door_segments={d.name: np.array([d.a, d.b], dtype=float) for d in doors},
+        pair_frames_skipped=pairs.skipped_frames,
     )
 
 

@@ -6,7 +6,9 @@ who relies on the teacher; child to child: who plays together). :class:`PairTall
 keeps, for every pair seen at the same time, the running mean and variance (Welford),
 the closest approach and the time together, in memory that does not grow with the
 recording; the distance itself is kept as a series (one value per ``series_every_s``)
-only while at most ``max_series_people`` people have been seen, for plots.
+only while at most ``max_series_people`` people have been seen, for plots. A frame with
+more than ``max_people`` people (a crowd, where every pair's distance means nothing and
+their number grows as the square) is not used for pairs, and counted.
 """
 
 from __future__ import annotations
@@ -77,10 +79,14 @@ class PairTally:
         Spacing of the kept distance series.
     max_series_people : int
         Series are kept only while no more people than this have been seen.
+    max_people : int
+        Frames with more people than this are skipped (``skipped_frames``).
     """
 
     series_every_s: float = 1.0
     max_series_people: int = 30
+    max_people: int = 40
+    skipped_frames: int = 0
     _pairs: dict[tuple[int, int], _Pair] = field(default_factory=dict)
     _people: set[int] = field(default_factory=set)
     _next_series_t: float = -math.inf
@@ -88,6 +94,9 @@ class PairTally:
     def add(self, t: float, positions: dict[int, tuple[float, float]], dt: float) -> None:
         """Everyone's position at ``t``, for ``dt`` seconds of the recording."""
         keys = sorted(positions)
+        if len(keys) > self.max_people:
+            self.skipped_frames += 1
+            return
         self._people.update(keys)
         if len(keys) < 2 or dt <= 0:
             return

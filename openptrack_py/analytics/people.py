@@ -154,7 +154,7 @@ class PersonTally:
     cell_m: float = 0.25
     density_share: float = 0.9
     momentum_every_s: float = 5.0
-    max_plot_points: int = 4000
+    max_plot_points: int = 1000
     name: str | None = None
     first_t: float | None = None
     last_t: float | None = None

@@ -1,11 +1,10 @@
 """Places on the floor: time in zones, crossings of doors, where people were.
 
-:class:`ZoneTracker` knows which zones each person is in and reports the changes (what
-a live zones sink turns into enter/leave events), :class:`PlaceTally` adds up, as
-frames stream in: each person's dwell time per zone and the zone's entries, each door's
-crossings in and out (a person's step that crosses the door's segment), and the
-occupancy heatmap (person-seconds per ``cell_m`` cell), all in memory that does not
-grow with the recording.
+:class:`PlaceTally` adds up, as frames stream in (with :mod:`openptrack_py.zones` for
+who is in which zone and who crossed a door): each person's dwell time per zone and the
+zone's entries, each door's crossings in and out (a person's step that crosses the
+door's segment), and the occupancy heatmap (person-seconds per ``cell_m`` cell), all in
+memory that does not grow with the recording.
 """
 
 from __future__ import annotations
@@ -17,95 +16,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from openptrack_py.config import DoorConfig, ZoneConfig
+from openptrack_py.zones import ZoneTracker, crossing
 
-__all__ = ["DoorSummary", "PlaceTally", "ZoneSummary", "ZoneTracker", "crossing", "inside"]
-
-
-def inside(polygon: np.ndarray, x: float, y: float) -> bool:
-    """Whether ``(x, y)`` is inside ``polygon`` (``(n, 2)``; even-odd rule)."""
-    px, py = polygon[:, 0], polygon[:, 1]
-    qx, qy = np.roll(px, -1), np.roll(py, -1)
-    straddle = (py > y) != (qy > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        at = px + (y - py) * (qx - px) / (qy - py)
-    return bool(np.count_nonzero(straddle & (x < at)) % 2)
-
-
-def crossing(door: DoorConfig, p: tuple[float, float], q: tuple[float, float]) -> int:
-    """+1 if the step ``p -> q`` enters through ``door``, -1 if it leaves, else 0."""
-    (ax, ay), (bx, by) = door.a, door.b
-
-    def side(x: float, y: float) -> float:
-        return (bx - ax) * (y - ay) - (by - ay) * (x - ax)  # > 0: left of a -> b
-
-    # the line itself counts as the left side, so a step that ends on it and the next
-    # that leaves it make one crossing, not none or two
-    sp, sq = side(*p) >= 0, side(*q) >= 0
-    if sp == sq:
-        return 0
-    # does the step cross the segment itself, not its line beyond the ends?
-    dx, dy = q[0] - p[0], q[1] - p[1]
-    ta = dx * (ay - p[1]) - dy * (ax - p[0])
-    tb = dx * (by - p[1]) - dy * (bx - p[0])
-    if ta * tb > 0:
-        return 0
-    return 1 if sq else -1
-
-
-class ZoneTracker:
-    """Which zones each person is in, and what changed with each frame.
-
-    Parameters
-    ----------
-    zones : sequence of ZoneConfig
-        The zones.
-    hold_s : float
-        A person missing from the frames this long or less keeps their zones (a
-        tracker drops a track for a moment without the person leaving).
-    """
-
-    def __init__(self, zones: Sequence[ZoneConfig], hold_s: float = 1.0) -> None:
-        self.zones = list(zones)
-        self.hold_s = hold_s
-        self._polygons = [np.array(z.polygon, dtype=float) for z in self.zones]
-        self.current: dict[int, set[str]] = {}
-        self._seen: dict[int, float] = {}
-
-    def update(
-        self, t: float, positions: dict[int, tuple[float, float]]
-    ) -> tuple[list[tuple[int, str]], list[tuple[int, str]]]:
-        """Take everyone's positions at ``t``; return ``(entered, left)`` (person, zone) pairs.
-
-        A person missing from ``positions`` for more than ``hold_s`` leaves every zone
-        they were in.
-        """
-        entered: list[tuple[int, str]] = []
-        left: list[tuple[int, str]] = []
-        now: dict[int, set[str]] = {}
-        for key, (x, y) in positions.items():
-            self._seen[key] = t
-            now[key] = {
-                z.name for z, poly in zip(self.zones, self._polygons, strict=True)
-                if inside(poly, x, y)
-            }  # fmt: skip
-        for key, names in self.current.items():
-            if key not in now and t - self._seen.get(key, t) <= self.hold_s:
-                now[key] = names  # briefly unseen: still there
-        for key in set(now) | set(self.current):
-            before, after = self.current.get(key, set()), now.get(key, set())
-            entered += [(key, z) for z in sorted(after - before)]
-            left += [(key, z) for z in sorted(before - after)]
-        self.current = {k: v for k, v in now.items() if v}
-        self._seen = {k: v for k, v in self._seen.items() if t - v <= self.hold_s}
-        return entered, left
-
-    def counts(self) -> dict[str, int]:
-        """People in each zone now."""
-        out = {z.name: 0 for z in self.zones}
-        for names in self.current.values():
-            for name in names:
-                out[name] += 1
-        return out
+__all__ = ["DoorSummary", "PlaceTally", "ZoneSummary"]
 
 
 @dataclass

@@ -177,6 +177,15 @@ def _distances(analysis: Analysis) -> str:
     return _png(fig)
 
 
+def _skipped_note(analysis: Analysis) -> str:
+    if not analysis.pair_frames_skipped:
+        return ""
+    return (
+        f'<p class="note">{analysis.pair_frames_skipped} frames had too many people for '
+        "pairwise distances and were left out of them.</p>"
+    )
+
+
 def _heatmap(analysis: Analysis) -> str:
     import matplotlib.pyplot as plt
 

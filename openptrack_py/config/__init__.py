@@ -44,6 +44,7 @@ from openptrack_py.config.output import (
     SmootherConfig,
     UdpSinkConfig,
     WebConfig,
+    ZoneSinkConfig,
 )
 from openptrack_py.config.places import DoorConfig, ZoneConfig
 from openptrack_py.config.recorder import RecorderConfig
@@ -82,6 +83,7 @@ __all__ = [
     "WebConfig",
     "ZenohConfig",
     "ZoneConfig",
+    "ZoneSinkConfig",
     "apply_overrides",
     "load_config",
     "load_network",

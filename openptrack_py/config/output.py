@@ -177,6 +177,34 @@ class WebConfig(StrictModel):
         return room
 
 
+class ZoneSinkConfig(StrictModel):
+    """One destination of zone events: who entered or left a zone, and zone counts.
+
+    The zones are the network's ``zones``. See :mod:`openptrack_py.output.zone_events`
+    for the messages.
+
+    Parameters
+    ----------
+    host : str
+        Destination address.
+    port : int
+        Destination port.
+    format : {"json", "osc"}
+        One compact JSON object per UDP datagram, or OSC messages.
+    prefix : str
+        OSC address prefix (``<prefix>/zone/enter``...).
+    counts_every_s : float
+        How often every zone's count is sent even when nothing changed (it is also
+        sent at every change); 0 sends counts only at changes.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = Field(21235, ge=1, le=65535)
+    format: Literal["json", "osc"] = "json"
+    prefix: str = Field("/opt", pattern=r"^(/[A-Za-z0-9_\-]+)+$")
+    counts_every_s: float = Field(1.0, ge=0.0, le=3600.0)
+
+
 class OutputConfig(StrictModel):
     """An output node: smoother and sinks for creative apps.
 
@@ -197,6 +225,8 @@ class OutputConfig(StrictModel):
         UDP JSON destinations.
     osc : list of OscSinkConfig
         OSC destinations.
+    zones : list of ZoneSinkConfig
+        Destinations of zone enter/leave events and counts (the network's ``zones``).
     web : WebConfig, optional
         WebSocket stream and web view.
     """
@@ -208,4 +238,5 @@ class OutputConfig(StrictModel):
     republish: bool = True
     udp: list[UdpSinkConfig] = Field(default_factory=list)
     osc: list[OscSinkConfig] = Field(default_factory=list)
+    zones: list[ZoneSinkConfig] = Field(default_factory=list)
     web: WebConfig | None = None

@@ -4,8 +4,8 @@ With ``source: smoothed`` a drift-free ticker runs the
 :class:`~openptrack_py.output.smoothing.MovingAverageSmoother` at ``rate_hz`` (ticks
 that come too late are counted as ``late_ticks``, never bunched up); with
 ``source: raw`` every tracker message goes out as soon as it arrives. Each frame goes to
-every sink's own worker (UDP JSON, OSC, WebSocket) and, when ``republish`` is on, to
-``opt/<site>/tracks/smoothed``.
+every sink's own worker (UDP JSON, OSC, WebSocket, zone events) and, when
+``republish`` is on, to ``opt/<site>/tracks/smoothed``.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from openptrack_py.output.osc import OscSink
 from openptrack_py.output.sinks import Sink, SinkWorker, UdpJsonSink
 from openptrack_py.output.smoothing import MovingAverageSmoother
 from openptrack_py.output.web import WebServer, WebSink, scene
+from openptrack_py.output.zone_events import ZoneEventSink
 from openptrack_py.runtime.node import Node
 
 
@@ -35,6 +36,7 @@ def build_sinks(
     """
     sinks: list[Sink] = [UdpJsonSink(u, f"udp{i}") for i, u in enumerate(cfg.udp)]
     sinks += [OscSink(o, f"osc{i}") for i, o in enumerate(cfg.osc)]
+    sinks += [ZoneEventSink(z, network.zones, f"zones{i}") for i, z in enumerate(cfg.zones)]
     server = None
     if cfg.web is not None:
         server = WebServer(cfg.web, scene(network, cfg.web), node.counters)

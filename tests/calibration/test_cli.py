@@ -179,7 +179,7 @@ def test_walk_from_a_recording_names_what_it_cannot_use(tmp_path: Path) -> None:
 @pytest.mark.zenoh
 @pytest.mark.slow
 def test_walk_live_calibrates_a_running_network(tmp_path: Path) -> None:
-    """The simulator plays one person walking (3x real time) through the demo's room, its
+    """The simulator plays one person walking (4x real time) through the demo's room, its
     sensors reporting through a calibration 0.3-0.5 m / 6-8 degrees off for two of them;
     ``calibrate walk --live`` listens over Zenoh and writes poses near the true ones."""
     from openptrack_py.calibration.files import (
@@ -203,7 +203,7 @@ def test_walk_live_calibrates_a_running_network(tmp_path: Path) -> None:
     net = yaml.safe_load(resolve_config_path("demo").read_text())
     net.update(calibration=str(tmp_path / "calibration.yaml"), outputs=[])
     net["zenoh"]["hub"] = None
-    net["sim"] = {"scenario": "walk", "seed": 3, "profile": "realistic", "speed": 3.0}
+    net["sim"] = {"scenario": "walk", "seed": 3, "profile": "realistic", "speed": 4.0}
     network = tmp_path / "net.yaml"
     network.write_text(yaml.safe_dump(net))
     log = (tmp_path / "sim.log").open("w")
@@ -214,7 +214,7 @@ def test_walk_live_calibrates_a_running_network(tmp_path: Path) -> None:
     )  # fmt: skip
     out = tmp_path / "solved.yaml"
     try:
-        done = _cli("walk", str(network), "--live", "22", "-e", endpoint,
+        done = _cli("walk", str(network), "--live", "16", "-e", endpoint,
                     "--no-multicast-scouting", "--output", str(out))  # fmt: skip
     finally:
         stop_process(sim)
