@@ -34,8 +34,12 @@ def tracked_and_true_frames(
     tracker_config: object = None,
     rate_hz: float = 10.0,
     max_distance_m: float = 0.5,
+    kinds: dict[int, str] | None = None,
 ) -> tuple[list[PeopleFrame], list[PeopleFrame], EvalResult]:
-    """The ground truth and the tracked positions of each person, ``rate_hz`` frames a second."""
+    """The ground truth and the tracked positions of each person, ``rate_hz`` frames a second.
+
+    ``kinds``, if given, is filled with each person's kind (``adult`` or ``child``).
+    """
     from openptrack_py.config import TrackerConfig
 
     config = tracker_config if tracker_config is not None else TrackerConfig()
@@ -50,6 +54,8 @@ def tracked_and_true_frames(
             return
         next_t[0] = t + 0.999 * period
         people = [p for p in gt.people if p.covered]
+        if kinds is not None:
+            kinds.update({p.id: p.kind for p in people})
         matched: dict[int, tuple[float, float]] = {}
         if hyp is not None and len(hyp.ids) and people:
             xy = np.array([(p.x, p.y) for p in people])
@@ -72,6 +78,7 @@ class AnalyticsCheck:
     truth: Analysis
     tracked: Analysis
     result: EvalResult
+    kinds: dict[int, str]
 
     def length_errors(self) -> dict[int, float]:
         """Relative error of each person's trajectory length."""
@@ -100,5 +107,6 @@ class AnalyticsCheck:
 
 def check_analytics(scenario: Scenario, **options: object) -> AnalyticsCheck:
     """Analyse a scenario's truth and its tracked positions (see the module)."""
-    truth, tracked, result = tracked_and_true_frames(scenario, **options)  # type: ignore[arg-type]
-    return AnalyticsCheck(analyze(truth), analyze(tracked), result)
+    kinds: dict[int, str] = {}
+    truth, tracked, result = tracked_and_true_frames(scenario, kinds=kinds, **options)  # type: ignore[arg-type]
+    return AnalyticsCheck(analyze(truth), analyze(tracked), result, kinds)
