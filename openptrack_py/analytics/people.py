@@ -24,6 +24,9 @@ import numpy as np
 
 __all__ = ["PersonSummary", "PersonTally", "convex_hull", "polygon_area"]
 
+TILE = 16
+"""Cells per side of the tiles a person's time per cell is kept in (4 m of 0.25 m cells):
+a few kilobytes each, only where the person went."""
 SPEED_BINS_MPS = (0.0, 0.2, 0.5, 1.0, 1.5, 2.0, 3.0, math.inf)
 """Edges of the speed histogram (standing, shuffling, walking slowly, walking, fast...)."""
 
@@ -169,7 +172,7 @@ class PersonTally:
     _hi: list[float] = field(default_factory=lambda: [-math.inf, -math.inf])
     _hull: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     _pending: list[tuple[float, float]] = field(default_factory=list)
-    _cells: dict[tuple[int, int], float] = field(default_factory=dict)
+    _tiles: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
     _speeds: np.ndarray = field(default_factory=lambda: np.zeros(len(SPEED_BINS_MPS) - 1))
     _momentum: list[tuple[float, float]] = field(default_factory=list)
     _path: list[tuple[float, float, float]] = field(default_factory=list)
@@ -185,8 +188,11 @@ class PersonTally:
         gap = t - self.last_t if self.last_t is not None else math.inf
         self.last_t = t
         self.seen_s += dt
-        cell = (math.floor(x / self.cell_m), math.floor(y / self.cell_m))
-        self._cells[cell] = self._cells.get(cell, 0.0) + dt
+        i, j = math.floor(x / self.cell_m), math.floor(y / self.cell_m)
+        tile = self._tiles.get((i // TILE, j // TILE))
+        if tile is None:
+            tile = self._tiles[(i // TILE, j // TILE)] = np.zeros((TILE, TILE), np.float32)
+        tile[i % TILE, j % TILE] += dt
         if gap > self.max_gap_s:
             self._recent.clear()
         self._recent.append((t, x, y))
@@ -233,7 +239,10 @@ class PersonTally:
             self._pending = []
 
     def _density_area(self) -> float:
-        times = np.sort(np.fromiter(self._cells.values(), dtype=float))[::-1]
+        if not self._tiles:
+            return 0.0
+        times = np.concatenate([t.ravel() for t in self._tiles.values()]).astype(float)
+        times = np.sort(times[times > 0])[::-1]
         if not len(times) or times.sum() <= 0:
             return 0.0
         needed = int(np.searchsorted(np.cumsum(times), self.density_share * times.sum()) + 1)
