@@ -145,9 +145,9 @@ class PersonTally:
     density_share : float
         Share of the person's time the density area holds.
     momentum_every_s : float
-        Spacing of the momentum series.
+        Spacing of the momentum series (doubled whenever it would pass ``max_plot_points``).
     max_plot_points : int
-        Most points kept of the path for plots.
+        Most points kept of the path and of the momentum series for plots.
     """
 
     key: int
@@ -177,7 +177,11 @@ class PersonTally:
     _momentum: list[tuple[float, float]] = field(default_factory=list)
     _path: list[tuple[float, float, float]] = field(default_factory=list)
     _path_every: int = 1
+    _momentum_every_s: float = 0.0
     _path_seen: int = 0
+
+    def __post_init__(self) -> None:
+        self._momentum_every_s = self.momentum_every_s
 
     def add(self, t: float, x: float, y: float, dt: float, name: str | None = None) -> None:
         """The person is at ``(x, y)`` at ``t``, for ``dt`` seconds of the recording."""
@@ -207,8 +211,11 @@ class PersonTally:
         if len(self._pending) >= 256:
             self._fold_hull()
         self._step(t, x, y, gap)
-        if not self._momentum or t - self._momentum[-1][0] >= self.momentum_every_s:
+        if not self._momentum or t - self._momentum[-1][0] >= self._momentum_every_s:
             self._momentum.append((t, self.length_m))
+            if len(self._momentum) > self.max_plot_points:  # an hour-long recording
+                self._momentum = self._momentum[::2]
+                self._momentum_every_s *= 2
         self._path_seen += 1
         if self._path_seen % self._path_every == 0:
             self._path.append((t, x, y))

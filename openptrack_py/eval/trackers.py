@@ -55,8 +55,18 @@ def _truth(config: Path | None, overrides: Sequence[str]) -> HypothesisFeed:
     return TruthFeed(start_time=DEFAULT_START_TIME)
 
 
-TRACKERS: dict[str, FeedFactory] = {"ukf": _ukf, "truth": _truth}
-"""``ukf``: the tracker. ``truth`` replays the ground truth: it proves the harness."""
+def _mcmc(config: Path | None, overrides: Sequence[str]) -> HypothesisFeed:
+    from openptrack_py.tracking.mcmc import McmcTracker
+
+    base = load_tracker_config(config, overrides)  # its reorder window and clock correction
+    pipeline = TrackingPipeline(McmcTracker(), base.reorder_window_s, base.clock_correction)  # type: ignore[arg-type]
+    return TrackerFeed(pipeline)
+
+
+TRACKERS: dict[str, FeedFactory] = {"ukf": _ukf, "mcmc": _mcmc, "truth": _truth}
+"""``ukf``: the tracker. ``mcmc``: the childcare paper's MCMC particle-group tracker
+(:mod:`openptrack_py.tracking.mcmc`), for comparison. ``truth`` replays the ground
+truth: it proves the harness."""
 DEFAULT_TRACKER = "ukf"
 
 DEFAULT_PROFILE = "realistic"
