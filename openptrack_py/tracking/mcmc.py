@@ -14,10 +14,10 @@ Markov chain Monte Carlo particle filter:
   5-6, an identity embedding's similarity above a threshold, weighted by the embedding's
   confidence as the paper weights faces by angle and distance); weights ``w_motion =
   gamma w_colour`` and ``w_motion + w_colour + w_face = 1`` (Eq. 9);
-* **MCMC**: for every group, a Metropolis-Hastings chain over ``P(Z|X)`` times the
-  motion model's prediction (a Gaussian fitted to the previous particles moved by Eq.
-  3), random-walk proposals, ``burn_in`` steps dropped, ``particles`` kept; the groups'
-  chains run side by side (one array step for all);
+* **MCMC**: for every group, a Metropolis-Hastings chain whose proposals are the
+  group's previous particles moved by the motion model, accepted by the likelihood
+  ratio (it samples ``P(Z|X)`` times the prediction), ``burn_in`` steps dropped,
+  ``particles`` kept; the groups' chains run side by side (one array step for all);
 * **estimate** (§2.3.3, point 2): the centre of the detected area closest to the
   particles' mean, if one is within ``snap_m``; several people may share one area
   (point 3).
@@ -49,6 +49,8 @@ walk in acceleration lets a person's velocity run away between sightings)."""
 FRAME_S = 0.04
 """The paper filters whole frames: each step sees every sensor's batch of the last
 ``FRAME_S`` (one frame period of 30 Hz sensors, give or take their phases)."""
+PROPOSAL_SPREAD = np.array([0.05, 0.05, 0.15, 0.15, 0.3, 0.3])
+"""Standard deviation of the spread added to each proposal (x, y m; vx, vy m/s; ax, ay m/s^2)."""
 AREA_M = 0.4
 """Detections of several sensors this close are one detected area."""
 COPY_M = 0.3
@@ -313,32 +315,31 @@ class McmcTracker:
     ) -> np.ndarray:
         """Metropolis-Hastings for every observed group at once; ``(G, particles, 6)``.
 
-        The target of a group is ``P(Z|X)`` times its predicted prior (a Gaussian fitted
-        to its predicted particles); proposals move the current sample a little.
+        Each proposal is one of the group's predicted particles (a previous sample moved by
+        the motion model, so its position and velocity stay consistent) spread a little
+        (:data:`PROPOSAL_SPREAD`, so that the samples do not collapse onto one), accepted
+        by the ratio of likelihoods: the chain samples ``P(Z|X)`` times the prediction.
         """
         p = self.params
-        n_groups = len(priors)
-        mean = priors.mean(axis=1)
-        spread = priors.std(axis=1) + np.array([0.05, 0.05, 0.1, 0.1, 0.1, 0.1])
+        n_groups, n = priors.shape[0], priors.shape[1]
         w_motion = np.stack([tm[0] for tm in terms])  # (G, K)
         appearance = np.stack([tm[1] for tm in terms])
+        rows = np.arange(n_groups)
 
-        def target(state: np.ndarray) -> np.ndarray:
+        def log_like(state: np.ndarray) -> np.ndarray:
             d2 = ((state[:, None, :2] - xy[None]) ** 2).sum(axis=2)  # (G, K)
             k = np.argmin(d2, axis=1)
-            g = np.arange(n_groups)
-            like = w_motion[g, k] * (-p.beta * d2[g, k]) + appearance[g, k]
-            prior = -0.5 * (((state - mean) / spread) ** 2).sum(axis=1)
-            return like + prior
+            return w_motion[rows, k] * (-p.beta * d2[rows, k]) + appearance[rows, k]
 
-        state = mean.copy()
-        current = target(state)
         steps = p.burn_in + p.particles * p.thin
-        step_size = 0.5 * spread
+        picks = self.rng.integers(0, n, (steps + 1, n_groups))
+        jitter = self.rng.normal(0.0, 1.0, (steps + 1, n_groups, 6)) * PROPOSAL_SPREAD
+        state = priors[rows, picks[0]] + jitter[0]
+        current = log_like(state)
         kept = []
         for s in range(steps):
-            proposal = state + self.rng.normal(0.0, 1.0, state.shape) * step_size
-            value = target(proposal)
+            proposal = priors[rows, picks[s + 1]] + jitter[s + 1]
+            value = log_like(proposal)
             accept = np.log(self.rng.random(n_groups)) < value - current
             state[accept], current[accept] = proposal[accept], value[accept]
             if s >= p.burn_in and (s - p.burn_in) % p.thin == 0:
