@@ -211,3 +211,39 @@ def test_classroom_analytics_against_ground_truth() -> None:
     assert np.abs(areas).max() <= 0.10, areas
     assert np.abs(distances).max() <= 0.05, distances
     assert math.isfinite(check.result.metrics.mota)
+
+
+def test_analyze_and_replay_read_a_cut_recording_up_to_the_cut_and_say_where(
+    tmp_path: Path,
+) -> None:
+    import subprocess
+    import sys
+
+    from tests.conftest import python_env
+
+    whole = tmp_path / "whole.mcap"
+    writer = open_writer(whole, flush_every_s=0.0)
+    for i, (t, x, y) in enumerate(_square_walk(loops=3).tolist()):
+        track = Track(id=1, x=x, y=y, z=0.9, height=1.7, vx=0, vy=0, age=i / RATE,
+                      confidence=0.9, visibility=1)  # fmt: skip
+        batch = TrackBatch(t, i, "world", (track,), (1,), 1)
+        writer.write(t, "opt/default/tracks", encode_track_batch(batch))
+    writer.close()
+    cut = tmp_path / "cut.mcap"
+    data = whole.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    done = subprocess.run(
+        [sys.executable, "-m", "openptrack_py.cli", "analyze", str(cut), "--format", "json"],
+        capture_output=True, text=True, env=python_env(), timeout=60,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert f"{cut}: " in done.stderr and ("cut" in done.stderr or "corrupt" in done.stderr)
+    seen = json.loads(done.stdout)[0]["seen_s"]
+    assert 0.3 * 24 < seen < 0.7 * 24  # about half of the 24 s walked
+    done = subprocess.run(
+        [sys.executable, "-m", "openptrack_py.cli", "replay", str(cut), "--topics", "tracks",
+         "--speed", "100", "-e", "tcp/127.0.0.1:9", "--no-multicast-scouting"],
+        capture_output=True, text=True, env=python_env(), timeout=60,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert f"{cut}: " in done.stderr and "replayed" in done.stdout
