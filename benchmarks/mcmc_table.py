@@ -6,6 +6,7 @@ scenario's full length. Prints a Markdown table (means over the seeds) and the J
 
     python -m benchmarks.mcmc_table
     python -m benchmarks.mcmc_table --seed 21 --duration 30   # quicker
+    python -m benchmarks.mcmc_table --profile ideal --seed 21  # clean detections
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ TRACKERS = ("ukf", "mcmc")
 COLUMNS = ("mota", "idf1", "id_switches", "duplicates", "fp", "fn", "ms_per_batch")
 
 
-def run(job: tuple[str, str, int, float | None]) -> dict[str, object]:
-    scenario, tracker, seed, duration = job
-    result = run_eval(scenario, seed, duration_s=duration, tracker=tracker, profile="realistic")
+def run(job: tuple[str, str, int, float | None, str]) -> dict[str, object]:
+    scenario, tracker, seed, duration, profile = job
+    result = run_eval(scenario, seed, duration_s=duration, tracker=tracker, profile=profile)
     m = result.metrics
     return {
         "scenario": scenario, "tracker": tracker, "seed": seed,
@@ -41,9 +42,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, action="append")
     parser.add_argument("--duration", type=float)
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--profile", default="realistic", help="noise profile (ideal: a check)")
     args = parser.parse_args(argv)
     seeds = args.seed or [21, 22, 23]
-    jobs = [(s, t, seed, args.duration) for s in SCENARIOS for t in TRACKERS for seed in seeds]
+    jobs = [
+        (s, t, seed, args.duration, args.profile)
+        for s in SCENARIOS for t in TRACKERS for seed in seeds
+    ]  # fmt: skip
     with ProcessPoolExecutor(args.jobs) as pool:
         rows = list(pool.map(run, jobs))
     for row in rows:

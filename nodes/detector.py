@@ -23,10 +23,9 @@ from collections.abc import Sequence
 from openptrack_py.calibration.files import SensorCalibration
 from openptrack_py.calibration.service import CalibrationFollower, sensor_entry
 from openptrack_py.config import NetworkConfig
-from openptrack_py.config.network import detector_node_name
 from openptrack_py.detection.service import DetectorService, source_for_sensor
 from openptrack_py.errors import CalibrationError, ConfigError, SourceError
-from openptrack_py.runtime.entry import node_parser, run_node
+from openptrack_py.runtime.entry import run_sensor_node, sensor_node_parser
 from openptrack_py.runtime.node import Node
 from openptrack_py.sim.depth_source import sim_source_for_sensor
 
@@ -57,16 +56,10 @@ def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the detector node."""
-    parser = node_parser("openptrack node detector", "Detect people in a sensor's depth frames.")
-    parser.add_argument("--sensor", required=True, help="sensor id in the network file")
-    parser.add_argument(
-        "--input", default=None, help="frame source instead of the sensor's own (see detect)"
+    parser = sensor_node_parser(
+        "openptrack node detector", "Detect people in a sensor's depth frames."
     )
-    argv = list(sys.argv[1:] if argv is None else argv)
-    known, _ = parser.parse_known_args(argv)
-    if "--name" not in argv:
-        argv += ["--name", detector_node_name(known.sensor)]
-    return run_node("detector", parser, main_loop, argv)
+    return run_sensor_node("detector", parser, main_loop, argv)
 
 
 if __name__ == "__main__":

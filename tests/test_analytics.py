@@ -186,13 +186,7 @@ def test_the_report_renders_every_section_in_headless_chromium(tmp_path: Path) -
         browser.close()
     assert seen["sections"] == [sid for sid, _ in SECTIONS]
     assert len(seen["images"]) >= 7 and seen["people"] == 2
-    errors = [
-        e for e in browser.events
-        if e["method"] == "Runtime.exceptionThrown"
-        or (e["method"] == "Log.entryAdded" and e["params"]["entry"]["level"] == "error")
-        or (e["method"] == "Runtime.consoleAPICalled" and e["params"]["type"] == "error")
-    ]  # fmt: skip
-    assert not errors, errors
+    assert not browser.page_errors(), browser.page_errors()
 
 
 @pytest.mark.slow

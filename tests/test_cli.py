@@ -60,7 +60,7 @@ def test_every_node_has_help(node: str) -> None:
 def test_unknown_node_lists_the_available_ones() -> None:
     result = _cli("node", "tracker-of-dreams")
     assert result.returncode == 2
-    available = "calibration, detector, output, record, sim, tracker"
+    available = "board, calibration, detector, output, record, sim, tracker"
     assert f"unknown node 'tracker-of-dreams' (available: {available})" in result.stderr
 
 

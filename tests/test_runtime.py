@@ -196,3 +196,18 @@ def test_text_formatter_includes_exceptions() -> None:
     except RuntimeError:
         logging.getLogger("x").exception("failed")
     assert "RuntimeError: boom" in stream.getvalue()
+
+
+@pytest.mark.parametrize("flag", ["-e", "-l"])
+def test_a_bad_endpoint_flag_is_a_config_error_naming_it(flag: str) -> None:
+    import argparse
+
+    from openptrack_py.config import ZenohConfig
+    from openptrack_py.errors import ConfigError
+    from openptrack_py.runtime.args import add_zenoh_arguments, zenoh_from_args
+
+    parser = argparse.ArgumentParser()
+    add_zenoh_arguments(parser)
+    args = parser.parse_args([flag, "tcp/127.0.0.1:"])
+    with pytest.raises(ConfigError, match=r"(?s)zenoh flags \(-e, -l\).*port must be a number"):
+        zenoh_from_args(ZenohConfig(), args)

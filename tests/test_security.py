@@ -129,6 +129,11 @@ def test_the_access_list_gives_each_identity_only_its_own_keys(tmp_path: Path) -
     assert [n for n, keys in puts.items() if "opt/default/tracks" in keys] == ["tracker"]
     calibration = [n for n, keys in puts.items() if "opt/default/calibration/*" in keys]
     assert calibration == ["calibration"]
+    # a calibration session: a sensor's board node reports that sensor's board only,
+    # and only an operator shows the session's progress
+    assert [n for n, keys in puts.items() if "opt/default/board/a" in keys] == ["detector_a"]
+    progress = [n for n, keys in puts.items() if "opt/default/board_progress" in keys]
+    assert progress == ["operator"]
 
 
 def test_security_needs_tls_endpoints_and_the_identitys_files(tmp_path: Path) -> None:

@@ -34,7 +34,13 @@ import yaml
 
 from openptrack_py.config import NetworkConfig, WebConfig, validate_config
 from openptrack_py.messages.track import Track, TrackBatch, Visibility
-from openptrack_py.output.web import WebServer, WebSink, frame_message, scene
+from openptrack_py.output.web import (
+    WebServer,
+    WebSink,
+    calibration_message,
+    frame_message,
+    scene,
+)
 from openptrack_py.runtime.counters import Counters
 from tests.conftest import ROOT, free_port, wait_for
 
@@ -170,6 +176,15 @@ class Chromium:
         if "exceptionDetails" in result:
             return None  # e.g. the page has not loaded its script yet
         return result["result"].get("value")
+
+    def page_errors(self) -> list[dict]:
+        """What the page reported as errors (``Runtime`` and ``Log`` enabled first)."""
+        return [
+            e for e in self.events
+            if e["method"] == "Runtime.exceptionThrown"
+            or (e["method"] == "Log.entryAdded" and e["params"]["entry"]["level"] == "error")
+            or (e["method"] == "Runtime.consoleAPICalled" and e["params"]["type"] == "error")
+        ]  # fmt: skip
 
     def close(self) -> None:
         try:
@@ -466,6 +481,37 @@ def test_websocket_sends_the_scene_first_then_frames(server: WebServer) -> None:
         assert all(isinstance(m, dict) and set(m) == FRAME_KEYS for m in got)
     sink.send(batches[0], now=0.0)  # a client that left is forgotten at the next frame
     wait_for(lambda: server.clients == 0, 10, "the server to forget the client")
+
+
+PROGRESS = {"stamp": 12.5, "seeing": ["k2_a"], "views": {"k2_a": 3, "k2_b": 0},
+            "pair_views": {"k2_a|k2_b": 0}, "coverage": {"k2_a": 0.25, "k2_b": 0.0},
+            "connected": False, "site": "default"}  # fmt: skip
+
+
+def test_a_board_sessions_progress_reaches_clients_even_those_who_come_later(
+    server: WebServer,
+) -> None:
+    message = calibration_message(orjson.dumps(PROGRESS))
+    assert orjson.loads(message) == {"type": "calibration", **{
+        k: v for k, v in PROGRESS.items() if k != "site"}}  # fmt: skip
+    with ws_sync_connect(f"ws://127.0.0.1:{server.port}/ws") as ws:
+        assert orjson.loads(ws.recv(timeout=10))["type"] == "scene"
+        server.broadcast(message, keep=True)
+        assert orjson.loads(ws.recv(timeout=10))["type"] == "calibration"
+    with ws_sync_connect(f"ws://127.0.0.1:{server.port}/ws") as ws:  # a later client
+        assert orjson.loads(ws.recv(timeout=10))["type"] == "scene"
+        assert orjson.loads(ws.recv(timeout=10)) == orjson.loads(message)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [b"[]", b"{not json", orjson.dumps({**PROGRESS, "views": {"k2_a": "3"}}),
+     orjson.dumps({**PROGRESS, "seeing": "k2_a"}), orjson.dumps({**PROGRESS, "connected": 1}),
+     orjson.dumps({**PROGRESS, "coverage": {"k2_a": True}}), b" " * 70_000],
+)  # fmt: skip
+def test_a_malformed_progress_is_refused(bad: bytes) -> None:
+    with pytest.raises(ValueError):
+        calibration_message(bad)
 
 
 def test_port_taken_is_a_config_error() -> None:

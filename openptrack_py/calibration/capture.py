@@ -9,7 +9,9 @@ which its corners stay within ``still_px`` of the run's first, and turns each ru
 least ``min_frames`` frames into one view at the run's middle stamp, its corners
 averaged (:func:`~openptrack_py.calibration.checkerboard.average_views`: image noise
 falls as the square root of the frames). A moving board, a board seen in too few frames
-and a frame whose board was not found end a run.
+and a frame whose board was not found end a run. :meth:`StillBoardViews.report` says
+the same as a :class:`~openptrack_py.calibration.board_wire.BoardReport`, what a
+sensor's machine publishes during a live session.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from openptrack_py.calibration.board_wire import BoardReport
 from openptrack_py.calibration.checkerboard import (
     BoardView,
     Checkerboard,
@@ -86,6 +89,23 @@ class StillBoardViews:
         last_stamp = self._run[-1][0]
         moved = float(np.abs(view.corners - first.corners).max())
         return moved <= self.still_px and stamp - last_stamp <= self.max_gap_s
+
+    def report(self, frame: Frame) -> BoardReport:
+        """Take the next frame; what the sensor says of it (see :meth:`add`)."""
+        done, view = self.add(frame)
+        return BoardReport(
+            self.sensor_id,
+            frame.stamp,
+            corners=None if view is None else view.corners,
+            view=done,
+            intrinsics=None if done is None else self._intrinsics,
+        )
+
+    def end_report(self, stamp: float) -> BoardReport:
+        """The last report, once the frames ran out: the run in progress, if long enough."""
+        return BoardReport(
+            self.sensor_id, stamp, view=self.flush(), intrinsics=self._intrinsics, end=True
+        )
 
     @property
     def intrinsics(self) -> Intrinsics | None:

@@ -91,6 +91,26 @@ class Checkerboard:
         if not (math.isfinite(self.margin_m) and self.margin_m >= 0):
             raise ConfigError(f"checkerboard.margin_m: must be >= 0 (received {self.margin_m})")
 
+    @classmethod
+    def parse(cls, text: str) -> Checkerboard:
+        """The board of ``ROWSxCOLSxSQUARE`` (inner corners, square side in metres).
+
+        Raises
+        ------
+        ConfigError
+            If the text is not of that form, or the board is not usable.
+        """
+        parts = text.lower().split("x")
+        try:
+            if len(parts) != 3:
+                raise ValueError(text)
+            rows, cols, square = int(parts[0]), int(parts[1]), float(parts[2])
+        except ValueError:
+            raise ConfigError(
+                f"--board: expected ROWSxCOLSxSQUARE such as 5x6x0.12, got {text!r}"
+            ) from None
+        return cls(rows=rows, cols=cols, square_m=square)
+
     @property
     def corner_count(self) -> int:
         """Number of inner corners."""

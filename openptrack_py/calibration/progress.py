@@ -4,18 +4,22 @@ Supports the capture of the checkerboard calibration of Munaro et al., OpenPTrac
 :class:`CalibrationProgress` is the running tally that a capture loop (the CLI, a web
 page) polls while someone moves the board: who sees it now, views per pair so far,
 image coverage per sensor, and whether the sensors are linked yet
-(:func:`~openptrack_py.calibration.posegraph.connected_groups`).
+(:func:`~openptrack_py.calibration.posegraph.connected_groups`). Synchronised captures
+(the simulator's) come through :meth:`CalibrationProgress.update`; the still views of
+unsynchronised sensors (a live or recorded session) through
+:meth:`CalibrationProgress.observe`.
 """
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
 
+from openptrack_py.calibration.observations import BoardObservation
 from openptrack_py.calibration.posegraph import connected_groups
 from openptrack_py.errors import CalibrationError
 
@@ -73,6 +77,9 @@ class CalibrationProgress:
         Cells per image side for the coverage figure.
     min_shared_views : int
         Fewest shared captures that link two sensors (for ``connected``).
+    pair_within_s : float
+        Two sensors' still views this close in time are of one placement
+        (:meth:`observe`).
     """
 
     def __init__(
@@ -81,6 +88,7 @@ class CalibrationProgress:
         *,
         grid: int = 4,
         min_shared_views: int = 3,
+        pair_within_s: float = 0.5,
     ) -> None:
         self._sizes = dict(image_sizes)
         self._grid = grid
@@ -90,6 +98,8 @@ class CalibrationProgress:
         self._pairs: dict[tuple[str, str], int] = {}
         self._stamp: float | None = None
         self._seeing: tuple[str, ...] = ()
+        self._pair_within_s = pair_within_s
+        self._view_stamps: list[tuple[str, float]] = []
         self._lock = threading.Lock()
 
     def update(
@@ -117,6 +127,44 @@ class CalibrationProgress:
                 self._mark(s, np.asarray(detections[s], dtype=float))
             for pair in combinations(sorted(seeing), 2):
                 self._pairs[pair] = self._pairs.get(pair, 0) + 1
+        return self.snapshot()
+
+    def observe(
+        self, stamp: float, seeing: Sequence[str], views: Sequence[BoardObservation]
+    ) -> ProgressSnapshot:
+        """Who sees the board now, and the still views completed since the last call.
+
+        For unsynchronised sensors (a live or recorded session): a view counts for a
+        pair when the other sensor completed one within ``pair_within_s`` of it (the
+        same placement of the board), once per placement.
+
+        Raises
+        ------
+        CalibrationError
+            For a sensor not given at construction.
+        """
+        unknown = [s for s in (*seeing, *(v.sensor_id for v in views)) if s not in self._sizes]
+        if unknown:
+            raise CalibrationError(
+                f"calibration progress: unknown sensor {unknown[0]!r} "
+                f"(sensors: {', '.join(self._sizes)})"
+            )
+        with self._lock:
+            self._stamp = stamp
+            self._seeing = tuple(s for s in self._sizes if s in set(seeing))
+            for view in views:
+                sid = view.sensor_id
+                self._views[sid] += 1
+                self._mark(sid, np.asarray(view.corners, dtype=float))
+                partners = {
+                    other
+                    for other, when in self._view_stamps
+                    if other != sid and abs(when - view.stamp) <= self._pair_within_s
+                }
+                for other in partners:
+                    pair = (min(sid, other), max(sid, other))
+                    self._pairs[pair] = self._pairs.get(pair, 0) + 1
+                self._view_stamps.append((sid, view.stamp))
         return self.snapshot()
 
     def _mark(self, sensor: str, corners: np.ndarray) -> None:

@@ -2,11 +2,13 @@
 
 Subcommands:
 
-``checkerboard NETWORK --recordings DIR | --sim``
+``checkerboard NETWORK --live SECONDS | --recordings DIR | --sim``
     The checkerboard procedure (Munaro et al., OpenPTrack, §4): a board moved through
     the room and held still at each placement, corners found in each sensor's colour or
     infrared image, every pose solved jointly, the world frame from the board laid on
-    the floor at the end. ``--recordings DIR`` reads the session as each sensor
+    the floor at the end. ``--live SECONDS`` gathers what each sensor's machine reports
+    of the board (``openptrack node board``) over Zenoh, showing the progress in the
+    terminal and the web view. ``--recordings DIR`` reads the session as each sensor
     recorded it (``openptrack record-sensor SOURCE DIR/<sensor id>`` on each sensor's
     computer) and prints per sensor its views, reprojection error and pose; ``--sim``
     plays it on the network's simulated sensors and prints the error against their
@@ -79,6 +81,14 @@ def add_parser(subparsers: Subparsers) -> None:
         help="the world frame: from the board laid on the floor at the end of the session "
         "(last), or from the first sensor's current pose (none)",
     )
+    board.add_argument(
+        "--live",
+        type=float,
+        metavar="SECONDS",
+        help="listen to the sensors' board nodes (openptrack node board) this long, or "
+        "until every one's source ends",
+    )
+    add_zenoh_arguments(board)
     board.set_defaults(func=run_checkerboard)
     walk = sub.add_parser("walk", help="calibration from one person walking")
     _common(walk)
@@ -159,8 +169,8 @@ def run_checkerboard(args: argparse.Namespace) -> int:
 
     if args.record is not None and not args.sim:
         return _fail("checkerboard: --record writes a simulated session: it needs --sim")
-    if args.sim == (args.recordings is not None):
-        return _fail("checkerboard: give one of --sim or --recordings DIR")
+    if sum([bool(args.sim), args.recordings is not None, args.live is not None]) != 1:
+        return _fail("checkerboard: give one of --sim, --recordings DIR or --live SECONDS")
     try:
         network = _network_for_writing(args)
         if args.record is not None:
@@ -173,13 +183,17 @@ def run_checkerboard(args: argparse.Namespace) -> int:
             from openptrack_py.cli.calibrate_board import from_recordings
 
             calibration = from_recordings(network, args, _TerminalProgress)
+        elif args.live is not None:
+            from openptrack_py.cli.calibrate_board import from_live
+
+            calibration = from_live(network, args, _TerminalProgress)
         else:
             result = _checkerboard_sim(network, args)
             calibration = result.calibration
         written = _write(args, network, calibration.entries())
     except (CalibrationError, ConfigError, ValueError) as exc:
         return _fail(exc)
-    if args.recordings is not None:
+    if args.recordings is not None or args.live is not None:
         from openptrack_py.cli.calibrate_board import rows
 
         print_rows(*rows(calibration), args.format)
@@ -236,7 +250,12 @@ class _TerminalProgress:
         self._tty = sys.stderr.isatty()
 
     def update(self, stamp: float, found: dict) -> Any:
-        snap = self.inner.update(stamp, found)
+        return self._show(self.inner.update(stamp, found))
+
+    def observe(self, stamp: float, seeing: Any, views: Any) -> Any:
+        return self._show(self.inner.observe(stamp, seeing, views))
+
+    def _show(self, snap: Any) -> Any:
         seeing = ",".join(sorted(snap.seeing)) or "-"
         pairs = " ".join(f"{a}+{b}:{n}" for (a, b), n in sorted(snap.pair_views.items()))
         cover = " ".join(f"{s}:{c:.0%}" for s, c in sorted(snap.coverage.items()))

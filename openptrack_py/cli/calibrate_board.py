@@ -1,13 +1,19 @@
-"""``openptrack calibrate checkerboard --recordings``: the procedure on recorded sessions.
+"""``openptrack calibrate checkerboard --live | --recordings``: the procedure on real sensors.
 
-The body of the recorded path of :func:`openptrack_py.cli.calibrate.run_checkerboard`.
-Each sensor's computer records the session while someone moves the board through the
+The bodies of the live and recorded paths of
+:func:`openptrack_py.cli.calibrate.run_checkerboard`. Live, each sensor's machine runs
+``openptrack node board`` while someone moves the board through the room, holds it
+still at each placement for a second or two and ends by laying it flat on the floor;
+the nodes publish what they see of the board, and :func:`from_live` gathers it with the
+progress in the terminal and on ``opt/<site>/board_progress`` (the web view draws it).
+Recorded, each sensor's computer records the session while someone moves the board through the
 room, holds it still at each placement for a second or two and ends by laying it flat on
 the floor (``openptrack record-sensor SOURCE DIR/<sensor id>``); the recordings are
 brought to one folder and read here in time order, all sensors at once, with the
 progress shown as if live (who sees the board, views per pair, image coverage). Still
 runs of the board become views (:mod:`~openptrack_py.calibration.capture`) and every
-pose is solved jointly (:func:`~openptrack_py.calibration.extrinsics.calibrate_extrinsics`).
+pose is solved jointly (:func:`~openptrack_py.calibration.extrinsics.calibrate_extrinsics`):
+both paths feed one :class:`~openptrack_py.calibration.board_collector.BoardCollector`.
 ``--sim --record DIR`` writes a simulated session as such recordings.
 """
 
@@ -15,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import heapq
-import math
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -25,26 +30,12 @@ import numpy as np
 
 from openptrack_py.errors import CalibrationError
 
-PROGRESS_EVERY_S = 0.5
-"""Recorded time between two progress updates."""
-SEEN_WITHIN_S = 0.25
-"""A sensor sees the board now if it found it this recently."""
-
 
 def board_from_arg(text: str) -> Any:
     """The board of ``--board ROWSxCOLSxSQUARE`` (e.g. ``5x6x0.12``)."""
     from openptrack_py.calibration.checkerboard import Checkerboard
 
-    parts = text.lower().split("x")
-    try:
-        if len(parts) != 3:
-            raise ValueError(text)
-        rows, cols, square = int(parts[0]), int(parts[1]), float(parts[2])
-    except ValueError:
-        raise ValueError(
-            f"--board: expected ROWSxCOLSxSQUARE such as 5x6x0.12, got {text!r}"
-        ) from None
-    return Checkerboard(rows=rows, cols=cols, square_m=square)
+    return Checkerboard.parse(text)
 
 
 def sim_sensors(network: Any) -> list[Any]:
@@ -74,12 +65,9 @@ def record_sim(network: Any, args: argparse.Namespace) -> list[Path]:
 
 def from_recordings(network: Any, args: argparse.Namespace, progress_view: Callable) -> Any:
     """Calibrate from ``DIR/<sensor id>`` recordings; the ``ExtrinsicCalibration``."""
+    from openptrack_py.calibration.board_collector import BoardCollector
     from openptrack_py.calibration.capture import StillBoardViews
-    from openptrack_py.calibration.extrinsics import calibrate_extrinsics
-    from openptrack_py.calibration.files import believed_poses
-    from openptrack_py.calibration.progress import CalibrationProgress
     from openptrack_py.detection.sources import open_source
-    from openptrack_py.sensor_types import SENSOR_TYPES
 
     board = board_from_arg(args.board)
     folders = {s.id: args.recordings / s.id for s in network.sensors}
@@ -87,36 +75,108 @@ def from_recordings(network: Any, args: argparse.Namespace, progress_view: Calla
     if missing:
         raise CalibrationError(f"checkerboard: no recording for sensor {', '.join(missing)}")
     types = {s.id: s.type for s in network.sensors}
-    sizes = {sid: (SENSOR_TYPES[t].width, SENSOR_TYPES[t].height) for sid, t in types.items()}
-    progress = progress_view(CalibrationProgress(sizes))
+    collector = BoardCollector(folders, progress_view(_progress(network)))
     views = {sid: StillBoardViews(sid, types[sid], board) for sid in folders}
     sources = {sid: open_source(str(path)) for sid, path in folders.items()}
-    observations = []
-    latest: dict[str, tuple[float, Any]] = {}
-    shown = -math.inf
+    last = 0.0
     try:
         for stamp, sid, frame in _in_time_order(sources):
-            done, view = views[sid].add(frame)
-            if done is not None:
-                observations.append(done)
-            latest[sid] = (stamp, None if view is None else view.corners)
-            if stamp - shown >= PROGRESS_EVERY_S:
-                shown = stamp
-                progress.update(stamp, _seen_now(latest, stamp, folders))
+            collector.add(views[sid].report(frame))
+            last = stamp
     finally:
         for source in sources.values():
             source.close()
-    for collector in views.values():
-        last = collector.flush()
-        if last is not None:
-            observations.append(last)
+    for still in views.values():
+        collector.add(still.end_report(last))
     if sys.stderr.isatty():
         print(file=sys.stderr)  # end the progress line
-    intrinsics = {sid: v.intrinsics for sid, v in views.items()}
+    return solve(network, args, collector)
+
+
+def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -> Any:
+    """Calibrate from the sensors' board reports over Zenoh; the ``ExtrinsicCalibration``.
+
+    Listens on ``opt/<site>/board/*`` for ``--live`` seconds, or until every sensor's
+    board node said its source ran out, and republishes the progress on
+    ``opt/<site>/board_progress`` for the web view.
+    """
+    import time
+
+    import orjson
+
+    from openptrack_py.calibration.board_collector import BoardCollector
+    from openptrack_py.runtime.args import bus_from_args
+    from openptrack_py.transport.keys import SiteKeys
+
+    keys = SiteKeys(network.site)
+    with bus_from_args(network, args) as bus:
+        publisher = bus.publisher(keys.board_progress)
+
+        def publish(snapshot: Any) -> None:
+            publisher.put(orjson.dumps({**snapshot.to_dict(), "site": network.site}))
+
+        shown = _Announced(progress_view(_progress(network)), publish)
+        collector = BoardCollector([s.id for s in network.sensors], shown)
+        subscription = bus.subscribe(
+            keys.board("*"), lambda s: collector.take(s.key, s.payload, time.monotonic())
+        )
+        start = time.monotonic()
+        try:
+            while time.monotonic() - start < args.live and not collector.finished:
+                time.sleep(0.1)
+        finally:
+            subscription.close()
+        final = shown.inner.snapshot()
+        publish(final)
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    dropped = {k: n for k, n in collector.counts.items() if k not in ("reports", "views") and n}
+    if dropped:
+        text = ", ".join(f"{n} {k}" for k, n in dropped.items())
+        print(f"checkerboard: reports dropped: {text}", file=sys.stderr)
+    silent = [sid for sid, k in collector.intrinsics.items() if k is None]
+    if len(silent) == len(network.sensors):
+        raise CalibrationError(
+            f"checkerboard: no sensor reported the board in {args.live:g} s (is "
+            "'openptrack node board' running on each sensor's machine?)"
+        )
+    return solve(network, args, collector)
+
+
+class _Announced:
+    """A progress display that also hands every snapshot to ``publish``."""
+
+    def __init__(self, inner: Any, publish: Callable[[Any], None]) -> None:
+        self.inner = inner
+        self.publish = publish
+
+    def observe(self, stamp: float, seeing: Any, views: Any) -> Any:
+        snapshot = self.inner.observe(stamp, seeing, views)
+        self.publish(snapshot)
+        return snapshot
+
+
+def _progress(network: Any) -> Any:
+    from openptrack_py.calibration.progress import CalibrationProgress
+    from openptrack_py.sensor_types import SENSOR_TYPES
+
+    return CalibrationProgress(
+        {s.id: (SENSOR_TYPES[s.type].width, SENSOR_TYPES[s.type].height) for s in network.sensors}
+    )
+
+
+def solve(network: Any, args: argparse.Namespace, collector: Any) -> Any:
+    """Every pose from a session's views (``--floor-board`` sets the world)."""
+    from openptrack_py.calibration.extrinsics import calibrate_extrinsics
+    from openptrack_py.calibration.files import believed_poses
+
+    board = board_from_arg(args.board)
+    observations = collector.views
+    intrinsics = collector.intrinsics
     unknown = [sid for sid, k in intrinsics.items() if k is None]
     if unknown:
         raise CalibrationError(
-            f"checkerboard: the recording of {', '.join(unknown)} has no frames with intrinsics"
+            f"checkerboard: {', '.join(unknown)} gave no frames with intrinsics"
         )
     floor_stamp, reference_pose = None, None
     if args.floor_board == "last":
@@ -150,17 +210,6 @@ def _in_time_order(sources: dict[str, Any]) -> Iterator[tuple[float, str, Any]]:
 
     streams = [tagged(sid, source) for sid, source in sources.items()]
     return heapq.merge(*streams, key=lambda item: (item[0], item[1]))
-
-
-def _seen_now(
-    latest: dict[str, tuple[float, Any]], stamp: float, sensors: dict[str, Path]
-) -> dict[str, Any]:
-    out = {}
-    for sid in sensors:
-        seen = latest.get(sid)
-        fresh = seen is not None and stamp - seen[0] <= SEEN_WITHIN_S
-        out[sid] = seen[1] if fresh else None  # type: ignore[index]
-    return out
 
 
 def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:

@@ -5,7 +5,8 @@ With ``source: smoothed`` a drift-free ticker runs the
 that come too late are counted as ``late_ticks``, never bunched up); with
 ``source: raw`` every tracker message goes out as soon as it arrives. Each frame goes to
 every sink's own worker (UDP JSON, OSC, WebSocket, zone events) and, when
-``republish`` is on, to ``opt/<site>/tracks/smoothed``.
+``republish`` is on, to ``opt/<site>/tracks/smoothed``. With a web view, the progress
+of a live checkerboard session (``opt/<site>/board_progress``) goes to the page too.
 """
 
 from __future__ import annotations
@@ -19,9 +20,10 @@ from openptrack_py.messages.track import TrackBatch
 from openptrack_py.output.osc import OscSink
 from openptrack_py.output.sinks import Sink, SinkWorker, UdpJsonSink
 from openptrack_py.output.smoothing import MovingAverageSmoother
-from openptrack_py.output.web import WebServer, WebSink, scene
+from openptrack_py.output.web import WebServer, WebSink, calibration_message, scene
 from openptrack_py.output.zone_events import ZoneEventSink
 from openptrack_py.runtime.node import Node
+from openptrack_py.transport.base import Sample
 
 
 def build_sinks(
@@ -69,6 +71,17 @@ class OutputService:
         self._republish = node.publisher(node.keys.tracks_smoothed) if cfg.republish else None
         self._last_empty = -float("inf")
         self._seq = 0
+        self._progress = None
+        if self.web is not None:  # a live board session's progress, drawn by the page
+            self._progress = node.bus.subscribe(node.keys.board_progress, self._board_progress)
+
+    def _board_progress(self, sample: Sample) -> None:
+        try:
+            message = calibration_message(sample.payload)
+        except ValueError:
+            self.node.counters.inc("web.malformed_progress")
+            return
+        self.web.broadcast(message, keep=True)  # type: ignore[union-attr]
 
     def dispatch(self, frame: TrackBatch) -> None:
         """Number a frame, hand it to every sink (never blocks) and republish it.
@@ -129,5 +142,7 @@ class OutputService:
                     if frame is not None:
                         self.dispatch(frame)
         finally:
+            if self._progress is not None:
+                self._progress.close()
             for worker in self.workers:
                 worker.close()

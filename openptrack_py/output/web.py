@@ -11,7 +11,11 @@ messages, which any browser sketch (p5.js...) can read:
 * every frame: ``{"type": "tracks", "seq", "stamp", "tracks": [{"id", "x", "y", "z",
   "height", "vx", "vy", "age", "confidence", "visibility", "confirmed"}], "alive_ids",
   "max_id"}``; tracks with a stable identity also carry ``stable_id`` and ``identity``
-  (the same track objects as on ``opt/<site>/tracks``).
+  (the same track objects as on ``opt/<site>/tracks``);
+* during a live checkerboard session (``openptrack calibrate checkerboard --live``), its
+  progress: ``{"type": "calibration", "stamp", "seeing": [sensor ids], "views":
+  {sensor: n}, "pair_views": {"a|b": n}, "coverage": {sensor: 0..1}, "connected"}``
+  (the latest also to each client that connects later). The page shows it as a panel.
 
 Each client has a queue of ``max_queue`` frames; a client that falls that far behind is
 disconnected (close code 1013, "try again later") rather than buffered without bound,
@@ -105,6 +109,47 @@ def frame_message(frame: TrackBatch) -> bytes:
     )
 
 
+MAX_PROGRESS_BYTES = 1 << 16
+"""A board session's progress is a few hundred bytes; larger is refused."""
+
+
+def calibration_message(payload: bytes) -> bytes:
+    """The page's message for a board session's progress (``opt/<site>/board_progress``).
+
+    Only the known fields are passed on, each checked.
+
+    Raises
+    ------
+    ValueError
+        If the payload is not such a progress report.
+    """
+    if len(payload) > MAX_PROGRESS_BYTES:
+        raise ValueError("board progress: too large")
+    data = orjson.loads(payload)
+    if not isinstance(data, dict):
+        raise ValueError("board progress: not an object")
+    stamp = data.get("stamp")
+    if stamp is not None and not isinstance(stamp, (int, float)):
+        raise ValueError("board progress: stamp")
+    seeing = data.get("seeing", [])
+    connected = data.get("connected")
+    if not isinstance(seeing, list) or not all(isinstance(s, str) for s in seeing):
+        raise ValueError("board progress: seeing")
+    if not isinstance(connected, bool):
+        raise ValueError("board progress: connected")
+    out: dict[str, Any] = {"type": "calibration", "stamp": stamp, "seeing": seeing,
+                           "connected": connected}  # fmt: skip
+    for name, kind in (("views", int), ("pair_views", int), ("coverage", float)):
+        table = data.get(name, {})
+        if not isinstance(table, dict) or not all(
+            isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool)
+            for k, v in table.items()
+        ):
+            raise ValueError(f"board progress: {name}")
+        out[name] = {k: kind(v) for k, v in table.items()}
+    return orjson.dumps(out)
+
+
 def _static(name: str) -> bytes:
     return importlib.resources.files("openptrack_py.output").joinpath("web", name).read_bytes()
 
@@ -165,6 +210,7 @@ class WebServer:
         self._scene = orjson.dumps(scene_message)
         self._clients: dict[ServerConnection, asyncio.Queue[str]] = {}
         self._closing: set[asyncio.Task[None]] = set()
+        self._calibration: str | None = None  # the latest board-session progress
         self._files = {f"/{n}": _static(n) for n in ("index.html", "view.js")}
         self._files["/"] = self._files["/index.html"]
         self._loop = asyncio.new_event_loop()
@@ -221,6 +267,8 @@ class WebServer:
         closed = asyncio.ensure_future(ws.wait_closed())  # notice a client that left
         try:
             await ws.send(self._scene.decode())
+            if self._calibration is not None:
+                await ws.send(self._calibration)
             while True:
                 getter = asyncio.ensure_future(queue.get())
                 await asyncio.wait({getter, closed}, return_when=asyncio.FIRST_COMPLETED)
@@ -234,8 +282,10 @@ class WebServer:
             closed.cancel()
             self._clients.pop(ws, None)
 
-    def _broadcast(self, message: bytes) -> None:
+    def _broadcast(self, message: bytes, keep: bool = False) -> None:
         text = message.decode()  # once for every client: sent as a text frame
+        if keep:
+            self._calibration = text
         for ws, queue in list(self._clients.items()):
             if queue.full():
                 self._clients.pop(ws, None)
@@ -271,9 +321,13 @@ class WebServer:
 
     # ------------------------------------------------------------------ any thread
 
-    def broadcast(self, message: bytes) -> None:
-        """Queue a message for every client (thread-safe, never blocks)."""
-        self._loop.call_soon_threadsafe(self._broadcast, message)
+    def broadcast(self, message: bytes, *, keep: bool = False) -> None:
+        """Queue a message for every client (thread-safe, never blocks).
+
+        With ``keep``, the message is also sent to every client that connects later
+        (until the next kept one).
+        """
+        self._loop.call_soon_threadsafe(self._broadcast, message, keep)
 
     @property
     def clients(self) -> int:

@@ -7,7 +7,7 @@ import importlib.resources
 import os
 from pathlib import Path
 
-from openptrack_py.config import NetworkConfig, ZenohConfig, load_network
+from openptrack_py.config import NetworkConfig, ZenohConfig, load_network, validate_config
 from openptrack_py.config.network import OPERATOR
 from openptrack_py.errors import ConfigError
 from openptrack_py.runtime.logs import LOG_LEVELS
@@ -128,7 +128,7 @@ def zenoh_from_args(cfg: ZenohConfig, args: argparse.Namespace) -> ZenohConfig:
         update["multicast_scouting"] = args.multicast_scouting
     if not update:
         return cfg
-    return ZenohConfig.model_validate({**cfg.model_dump(), **update})
+    return validate_config(ZenohConfig, {**cfg.model_dump(), **update}, "zenoh flags (-e, -l)")
 
 
 def bus_from_args(

@@ -7,6 +7,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 from openptrack_py.config import NetworkConfig
+from openptrack_py.config.network import detector_node_name
 from openptrack_py.errors import ConfigError
 from openptrack_py.runtime.args import add_common_arguments, bus_from_args, network_from_args
 from openptrack_py.runtime.logs import configure_logging
@@ -24,6 +25,33 @@ def node_parser(prog: str, description: str) -> argparse.ArgumentParser:
         "--name", dest="name", default=None, help="node name (default: the node kind)"
     )
     return parser
+
+
+def sensor_node_parser(prog: str, description: str) -> argparse.ArgumentParser:
+    """:func:`node_parser` with ``--sensor`` and ``--input`` (a sensor machine's node)."""
+    parser = node_parser(prog, description)
+    parser.add_argument("--sensor", required=True, help="sensor id in the network file")
+    parser.add_argument(
+        "--input", default=None, help="frame source instead of the sensor's own (see detect)"
+    )
+    return parser
+
+
+def run_sensor_node(
+    kind: str,
+    parser: argparse.ArgumentParser,
+    body: Callable[[NetworkConfig, Node, argparse.Namespace], None],
+    argv: Sequence[str] | None = None,
+) -> int:
+    """:func:`run_node` under the sensor's detector name, unless ``--name`` says otherwise.
+
+    The detector's name is what a secured site's sensor certificate is issued to.
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    known, _ = parser.parse_known_args(argv)
+    if "--name" not in argv:
+        argv += ["--name", detector_node_name(known.sensor)]
+    return run_node(kind, parser, body, argv)
 
 
 def run_node(

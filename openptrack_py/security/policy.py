@@ -10,9 +10,11 @@ not receive is dropped by Zenoh before it reaches our code. The list:
 * each identity may put its own stats (``stats/<name>``) and its own configuration
   answers (``config/<name>/ack``), and announce only its own liveliness token
   (``alive/<name>``), so no certificate can make a dead node look alive;
-* a sensor's detector may put that sensor's detections only, the simulator those of
+* a sensor's detector may put that sensor's detections and board reports only (the
+  board node of a calibration session runs under its name), the simulator those of
   the simulated sensors and the ground truth; the tracker the tracks; an output node
-  its smoothed tracks; an operator (``security.operators``) configuration requests;
+  its smoothed tracks; an operator (``security.operators``) configuration requests and
+  the progress of a board session;
 * the calibration node may put calibration updates, declare the calibration queryable
   and reply to it; every member may ask it;
 * everything else is refused (``default_permission: deny``), other queries and replies
@@ -63,7 +65,10 @@ def put_keys(network: NetworkConfig) -> dict[str, list[str]]:
         if sensor.source != "sim" or (
             network.sim is not None and network.sim.sensor_model == "rgbd"
         ):
-            allowed[detector_node_name(sensor.id)] = [keys.detections(sensor.id)]
+            allowed[detector_node_name(sensor.id)] = [
+                keys.detections(sensor.id),
+                keys.board(sensor.id),  # the board node runs under the detector's name
+            ]
     if network.tracker is not None:
         allowed[TRACKER] = [keys.tracks]
     if network.calibrated:
@@ -74,7 +79,7 @@ def put_keys(network: NetworkConfig) -> dict[str, list[str]]:
         allowed[RECORDER] = []
     operators = network.security.operators if network.security is not None else [OPERATOR]
     for name in operators:
-        allowed.setdefault(name, []).append(keys.config("*"))
+        allowed.setdefault(name, []).extend([keys.config("*"), keys.board_progress])
     for name, own in allowed.items():
         own += [keys.stats(name), keys.config_ack(name)]
     return allowed

@@ -54,6 +54,15 @@ class SiteKeys:
         """Calibration of one sensor (queryable)."""
         return f"{self.prefix}/calibration/{sensor_id}"
 
+    def board(self, sensor_id: str = "*") -> str:
+        """What one sensor sees of the checkerboard during a calibration session."""
+        return f"{self.prefix}/board/{sensor_id}"
+
+    @property
+    def board_progress(self) -> str:
+        """Progress of a live checkerboard session (for the web view)."""
+        return f"{self.prefix}/board_progress"
+
     def config(self, node: str = "*") -> str:
         """Live parameter updates of one node."""
         return f"{self.prefix}/config/{node}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -89,7 +90,8 @@ def test_apply_without_a_network_calibration_file_writes_nothing(tmp_path: Path)
 
 def test_a_procedure_needs_its_input() -> None:
     done = _cli("checkerboard", "demo")
-    assert done.returncode == 2 and "give one of --sim or --recordings DIR" in done.stderr
+    assert done.returncode == 2
+    assert "give one of --sim, --recordings DIR or --live SECONDS" in done.stderr
     done = _cli("checkerboard", "demo", "--record", "x")
     assert done.returncode == 2 and "--record writes a simulated session" in done.stderr
 
@@ -227,23 +229,24 @@ def test_walk_live_calibrates_a_running_network(tmp_path: Path) -> None:
         assert gap < 0.10 and turn < 1.5, (sensor_id, gap, turn)
 
 
-@pytest.mark.slow
-def test_checkerboard_from_each_sensors_recording_of_the_session(tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def board_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The session as three sensors' computers record it (a folder each, unsynchronised,
     the board held still a few frames at each placement, then laid on the floor)."""
-    session = tmp_path / "session"
+    session = tmp_path_factory.mktemp("board") / "session"
     done = _cli("checkerboard", "demo", "--sim", "--placements", "16", "--record", str(session))
     assert done.returncode == 0, done.stderr[-2000:]
     assert sorted(p.name for p in session.iterdir()) == ["k2_a", "k2_b", "k2_c"]
-    out = tmp_path / "calibration.yaml"
-    done = _cli("checkerboard", "demo", "--recordings", str(session), "--output", str(out),
-                "--format", "json")  # fmt: skip
+    return session
+
+
+def _assert_board_calibration(done: subprocess.CompletedProcess[str], out: Path) -> None:
+    """Every sensor within 1 cm and 0.2 degrees of the truth, relative to one another;
+    heights and tilts above the floor (the world is the floor board's) directly."""
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "board seen by" in done.stderr  # the progress, as if live
+    assert "board seen by" in done.stderr  # the progress line
     rows = {r["sensor"]: r for r in json.loads(done.stdout)}
     assert set(rows) == {"k2_a", "k2_b", "k2_c"} and all(r["views"] >= 5 for r in rows.values())
-    # the world is the floor board's (origin at its first corner): sensors are compared
-    # with k2_a, and their height and tilt above the floor directly
     entries = load_calibration(out).sensors
     anchor, true_anchor = entries["k2_a"].world_from_optical(), _true_pose("k2_a")
     for sensor_id, entry in entries.items():
@@ -257,6 +260,16 @@ def test_checkerboard_from_each_sensors_recording_of_the_session(tmp_path: Path)
         assert abs(solved[2, 2] - truth[2, 2]) < np.radians(0.2), sensor_id  # the tilt
 
 
+@pytest.mark.slow
+def test_checkerboard_from_each_sensors_recording_of_the_session(
+    board_session: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "calibration.yaml"
+    done = _cli("checkerboard", "demo", "--recordings", str(board_session), "--output", str(out),
+                "--format", "json")  # fmt: skip
+    _assert_board_calibration(done, out)
+
+
 def test_checkerboard_recordings_name_a_missing_sensor(tmp_path: Path) -> None:
     (tmp_path / "k2_a").mkdir()
     done = _cli("checkerboard", "demo", "--recordings", str(tmp_path))
@@ -264,3 +277,106 @@ def test_checkerboard_recordings_name_a_missing_sensor(tmp_path: Path) -> None:
     assert f"no recording for sensor k2_b ({tmp_path / 'k2_b'}), k2_c" in done.stderr
     done = _cli("checkerboard", "demo", "--recordings", str(tmp_path), "--board", "5x5x0.1")
     assert done.returncode == 2 and "orientation is ambiguous" in done.stderr
+
+
+@pytest.mark.zenoh
+@pytest.mark.slow
+def test_checkerboard_live_from_each_sensors_board_node(
+    board_session: Path, tmp_path: Path, spawn: Callable[..., subprocess.Popen[str]]
+) -> None:
+    """Each sensor's machine runs ``openptrack node board`` on its frames (here its
+    recording, read as fast as it goes); ``calibrate checkerboard --live`` gathers their
+    reports over Zenoh and solves; the web view shows the session's progress."""
+    web = pytest.importorskip("tests.test_web")
+    from tests.conftest import free_port, stop_process, wait_for
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    web_port = free_port()
+    net = yaml.safe_load(resolve_config_path("demo").read_text())
+    net["zenoh"]["hub"] = None
+    net["outputs"][0]["udp"] = []
+    net["outputs"][0]["web"] = {"host": "127.0.0.1", "port": web_port, "room": [0, 0, 8, 6]}
+    network = tmp_path / "net.yaml"
+    network.write_text(yaml.safe_dump(net))
+    zenoh = ("-e", endpoint, "--no-multicast-scouting")
+    out = tmp_path / "calibration.yaml"
+    command = [sys.executable, "-m", "openptrack_py.cli", "calibrate", "checkerboard",
+               str(network), "--live", "120", "-l", endpoint, "--no-multicast-scouting",
+               "--output", str(out), "--format", "json"]  # fmt: skip
+    calibrate = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                 text=True, env=python_env())  # fmt: skip
+    output = spawn("-m", "openptrack_py.nodes.output", "-c", str(network), "--name", "output",
+                   *zenoh, name="output")  # fmt: skip
+    url = f"http://127.0.0.1:{web_port}/"
+    wait_for(lambda: _serves(url), 30, "the web view")
+    boards = [
+        spawn(
+            "-m",
+            "openptrack_py.nodes.board",
+            "-c",
+            str(network),
+            "--sensor",
+            sid,
+            "--input",
+            str(board_session / sid),
+            *zenoh,
+            name=sid,
+        )
+        for sid in ("k2_a", "k2_b", "k2_c")
+    ]
+    try:
+        stdout, stderr = calibrate.communicate(timeout=180)
+    finally:
+        if calibrate.poll() is None:
+            calibrate.kill()
+    done = subprocess.CompletedProcess(command, calibrate.returncode, stdout, stderr)
+    _assert_board_calibration(done, out)
+    for board in boards:
+        assert board.wait(timeout=30) == 0, board.log_path.read_text()[-2000:]  # type: ignore[attr-defined]
+    assert "reports dropped" not in stderr
+    if web.CHROMIUM is None:
+        stop_process(output)
+        return
+    browser = web.Chromium(url, tmp_path / "profile", tmp_path / "chromium.log")
+    panel = """JSON.stringify({
+        hidden: document.getElementById("calibration").hidden,
+        rows: [...document.querySelectorAll("#calibration-sensors tr")]
+            .map(r => [...r.children].map(c => c.textContent)),
+        linked: document.getElementById("calibration-linked").textContent,
+        state: JSON.parse(document.getElementById("state").textContent)})"""
+    seen: dict = {}
+    try:
+        browser.attach_to_page(url)
+        browser.call("Runtime.enable")
+        browser.call("Log.enable")
+        browser.call("Page.reload", {"ignoreCache": True})
+
+        def shown() -> bool:
+            text = browser.evaluate(panel)
+            seen.update(json.loads(text) if text else {})
+            return len(seen.get("rows") or []) == 3
+
+        wait_for(shown, 20, "the checkerboard panel")
+    finally:
+        browser.close()
+        stop_process(output)
+    assert output.returncode == 0, output.log_path.read_text()[-2000:]  # type: ignore[attr-defined]
+    assert not seen["hidden"] and seen["linked"] == "every sensor linked"
+    rows = {r[0]: r for r in seen["rows"]}
+    assert sorted(rows) == ["k2_a", "k2_b", "k2_c"]
+    solved = {r["sensor"]: r["views"] for r in json.loads(stdout)}
+    for sid, row in rows.items():
+        assert int(row[2]) >= solved[sid] >= 5, row  # every view counted, floor board too
+        assert row[3].endswith("%") and int(row[3][:-2]) > 0
+    assert seen["state"]["calibration"]["connected"] is True
+    assert not browser.page_errors(), browser.page_errors()
+
+
+def _serves(url: str) -> bool:
+    import urllib.request
+
+    try:
+        with urllib.request.urlopen(url, timeout=1) as reply:
+            return reply.status == 200
+    except OSError:
+        return False

@@ -1,6 +1,7 @@
 // Live top-down view of openptrack_py tracks: no build step, no dependencies.
 // Connects to ws://<this host>/ws, draws the room, the sensors' fields of view, and each
-// track with its id and a fading trail. What was last drawn is also written as JSON into
+// track with its id and a fading trail; during a live checkerboard session, a panel of
+// its progress and a ring around each sensor that sees the board. What was last drawn is also written as JSON into
 // <pre id="state"> so that tests (and curious people) can read it.
 "use strict";
 
@@ -14,6 +15,7 @@ let tracks = [];
 const trails = new Map(); // id -> [{x, y, t}]
 let frames = 0;
 const arrivals = [];
+let calibration = null; // the latest progress of a live checkerboard session
 
 function colour(id) {
   const hue = (id * 137.508) % 360; // golden angle: neighbours differ
@@ -65,7 +67,15 @@ function draw() {
     ctx.closePath();
     ctx.fill();
   }
+  const seeing = new Set(calibration ? calibration.seeing : []);
   for (const s of scene.sensors) {
+    if (seeing.has(s.id)) { // this sensor sees the board now
+      ctx.strokeStyle = "#6fd08c";
+      ctx.lineWidth = 2 * v.dpr;
+      ctx.beginPath();
+      ctx.arc(v.px(s.x), v.py(s.y), 10 * v.dpr, 0, 2 * Math.PI);
+      ctx.stroke();
+    }
     ctx.fillStyle = "#78a0dc";
     ctx.fillRect(v.px(s.x) - 4 * v.dpr, v.py(s.y) - 4 * v.dpr, 8 * v.dpr, 8 * v.dpr);
     label(s.id, v.px(s.x) + 6 * v.dpr, v.py(s.y) - 6 * v.dpr, "#78a0dc", v.dpr);
@@ -90,6 +100,7 @@ function draw() {
   el("state").textContent = JSON.stringify({
     frames,
     tracks: tracks.map((t) => ({ id: t.id, x: t.x, y: t.y, label: trackLabel(t) })),
+    calibration,
   });
 
   function line(ax, ay, bx, by) {
@@ -140,6 +151,34 @@ function onTracks(msg) {
   draw();
 }
 
+// the panel of a live checkerboard session: who sees the board, views, coverage, pairs
+function onCalibration(msg) {
+  calibration = msg;
+  el("calibration").hidden = false;
+  const seeing = new Set(msg.seeing);
+  const body = el("calibration-sensors");
+  body.replaceChildren();
+  for (const id of Object.keys(msg.views).sort()) {
+    const row = document.createElement("tr");
+    const cells = [id, seeing.has(id) ? "seen" : "-", String(msg.views[id]),
+                   `${Math.round(100 * (msg.coverage[id] || 0))} %`];
+    for (const text of cells) {
+      const td = document.createElement("td");
+      td.textContent = text;
+      row.appendChild(td);
+    }
+    if (seeing.has(id)) row.className = "seeing";
+    body.appendChild(row);
+  }
+  const pairs = Object.entries(msg.pair_views).sort()
+    .map(([pair, n]) => `${pair.replace("|", " + ")}: ${n}`);
+  el("calibration-pairs").textContent = `views together: ${pairs.join(", ") || "none yet"}`;
+  const linked = el("calibration-linked");
+  linked.textContent = msg.connected ? "every sensor linked" : "not every sensor linked yet";
+  linked.className = msg.connected ? "linked" : "unlinked";
+  draw();
+}
+
 function connect() {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
   // a page opened with ?token=... passes it on to the stream (outputs.web.token_file)
@@ -162,6 +201,8 @@ function connect() {
       draw();
     } else if (msg.type === "tracks") {
       onTracks(msg);
+    } else if (msg.type === "calibration") {
+      onCalibration(msg);
     }
   };
 }

@@ -1,0 +1,77 @@
+"""Board node: what one sensor sees of the checkerboard during a calibration session.
+
+Runs on the sensor's machine in place of (or beside) its detector while someone moves
+the board through the room (Munaro et al., OpenPTrack, §4). It finds the board in each
+of the sensor's frames (colour, or infrared for time-of-flight sensors), follows the
+runs of frames in which it is held still, and publishes a compact report per frame on
+``opt/<site>/board/<sensor_id>``: the corners seen, each completed still view with the
+sensor's intrinsics, and a last report when the source runs out. The images never leave
+the machine. ``openptrack calibrate checkerboard NETWORK --live SECONDS`` on the master
+gathers the reports and solves every pose. It runs under the detector's name, so a
+secured site's sensor certificate is the one it uses.
+
+Typical usage::
+
+    openptrack node board -c site.yaml --sensor k2_a
+    openptrack node board -c site.yaml --sensor k2_a --input recordings/k2_a
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from openptrack_py.calibration.board_wire import encode_board_report
+from openptrack_py.calibration.capture import StillBoardViews
+from openptrack_py.calibration.checkerboard import Checkerboard
+from openptrack_py.config import NetworkConfig
+from openptrack_py.detection.service import source_for_sensor
+from openptrack_py.errors import ConfigError, SourceError
+from openptrack_py.runtime.entry import run_sensor_node, sensor_node_parser
+from openptrack_py.runtime.node import Node
+
+
+def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
+    """Report the board until the source ends or the node is stopped."""
+    sensor = cfg.sensor(args.sensor)
+    try:
+        board = Checkerboard.parse(args.board)
+        source = source_for_sensor(cfg, sensor, args.input)
+    except SourceError as exc:
+        raise ConfigError(f"sensors.{sensor.id}: {exc}") from None
+    views = StillBoardViews(sensor.id, sensor.type, board)
+    publisher = node.publisher(node.keys.board(sensor.id))
+    node.log.info("board", extra={"fields": {"sensor": sensor.id, "source": source.name}})
+    stamp = 0.0
+    try:
+        for frame in source.frames():
+            if not node.running:
+                break
+            stamp = frame.stamp
+            report = views.report(frame)
+            publisher.put(encode_board_report(report))
+            node.counters.inc("frames")
+            if report.corners is not None:
+                node.counters.inc("seen")
+            if report.view is not None:
+                node.counters.inc("views")
+        publisher.put(encode_board_report(views.end_report(stamp)))
+    finally:
+        source.close()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the board node."""
+    parser = sensor_node_parser("openptrack node board", "Report what a sensor sees of the board.")
+    parser.add_argument(
+        "--board",
+        default="5x6x0.12",
+        metavar="ROWSxCOLSxSQUARE",
+        help="inner corners and square side in metres (default OpenPTrack's 5x6x0.12)",
+    )
+    return run_sensor_node("board", parser, main_loop, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

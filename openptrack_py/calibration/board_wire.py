@@ -1,0 +1,187 @@
+"""What a sensor's machine says about the board during a live checkerboard session.
+
+The live form of step 1 of the checkerboard calibration of Munaro et al., OpenPTrack
+(§4): each sensor's machine finds the board in its own frames and publishes a compact
+:class:`BoardReport` on ``opt/<site>/board/<sensor>`` (the images never leave it), and
+the master gathers the reports into views and the progress display.
+
+A report says, for one frame: where the board's inner corners are in the image (or that
+it is not seen); the still view the frame completed, if any (a run of frames in which
+the board was held still, its corners averaged and its pose in the camera, see
+:class:`~openptrack_py.calibration.capture.StillBoardViews`); the sensor's intrinsics
+with every completed view; and ``end`` when the sensor's source ran out.
+
+Wire form: one JSON object with the envelope of every message (``"v"``, ``"kind":
+"board"``); :func:`decode_board_report` checks every field as strictly as the other
+decoders and raises :class:`~openptrack_py.errors.WireFormatError` naming the first one
+that is wrong.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from openptrack_py.calibration.observations import BoardObservation
+from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.errors import ConfigError, WireFormatError
+from openptrack_py.messages.fields import (
+    MAX_STAMP_S,
+    SCHEMA_VERSION,
+    check_keys,
+    dump_message,
+    fail,
+    parse_message,
+    read_bool,
+    read_float,
+    read_int,
+    read_list,
+    read_name,
+)
+
+__all__ = ["BoardReport", "decode_board_report", "encode_board_report"]
+
+KIND = "board"
+MAX_CORNERS = 1000
+"""Most inner corners of a board (a 25 x 40 board is already unusually fine)."""
+MAX_PIXELS = 100_000
+"""Largest image side, pixels."""
+_KEYS = frozenset({"v", "kind", "sensor_id", "stamp", "corners", "view", "intrinsics", "end"})
+_VIEW_KEYS = frozenset({"stamp", "corners", "camera_from_board"})
+_INTRINSIC_KEYS = frozenset({"width", "height", "fx", "fy", "cx", "cy"})
+
+
+@dataclass(frozen=True)
+class BoardReport:
+    """One sensor's word on the board for one frame.
+
+    Parameters
+    ----------
+    sensor_id : str
+        The sensor.
+    stamp : float
+        The frame's capture time (the sensor's clock), seconds.
+    corners : ndarray or None
+        ``(n, 2)`` pixel positions of the board's inner corners in this frame, or
+        ``None`` where the board was not found.
+    view : BoardObservation or None
+        The still view this frame completed, if any.
+    intrinsics : Intrinsics or None
+        The sensor's camera model (sent with every completed view).
+    end : bool
+        The sensor's source ran out: no more reports will come.
+    """
+
+    sensor_id: str
+    stamp: float
+    corners: np.ndarray | None = None
+    view: BoardObservation | None = None
+    intrinsics: Intrinsics | None = None
+    end: bool = False
+
+
+def _points(value: np.ndarray, path: str) -> list[list[float]]:
+    points = np.asarray(value, dtype=float)
+    if points.ndim != 2 or points.shape[1] != 2 or not np.isfinite(points).all():
+        raise WireFormatError(f"{path}: expected finite (n, 2) pixel positions")
+    return points.tolist()
+
+
+def encode_board_report(report: BoardReport) -> bytes:
+    """Wire bytes of a report.
+
+    Raises
+    ------
+    WireFormatError
+        If a number is not finite or an array has the wrong shape.
+    """
+    obj: dict = {"v": SCHEMA_VERSION, "kind": KIND, "sensor_id": report.sensor_id,
+                 "stamp": float(report.stamp)}  # fmt: skip
+    if report.corners is not None:
+        obj["corners"] = _points(report.corners, "corners")
+    if report.view is not None:
+        pose = np.asarray(report.view.camera_from_board, dtype=float)
+        if pose.shape != (4, 4) or not np.isfinite(pose).all():
+            raise WireFormatError("view.camera_from_board: expected a finite 4x4 matrix")
+        obj["view"] = {
+            "stamp": float(report.view.stamp),
+            "corners": _points(report.view.corners, "view.corners"),
+            "camera_from_board": pose.reshape(-1).tolist(),
+        }
+    if report.intrinsics is not None:
+        k = report.intrinsics
+        obj["intrinsics"] = {"width": k.width, "height": k.height, "fx": k.fx, "fy": k.fy,
+                             "cx": k.cx, "cy": k.cy}  # fmt: skip
+    if report.end:
+        obj["end"] = True
+    return dump_message(obj)
+
+
+def _read_points(obj: dict, key: str, path: str) -> np.ndarray:
+    items = read_list(obj, key, path, MAX_CORNERS)
+    if not items:
+        raise WireFormatError(f"{path}{key}: expected at least one corner")
+    for i, item in enumerate(items):
+        if (
+            type(item) is not list
+            or len(item) != 2
+            or any(type(c) not in (int, float) for c in item)
+            or not all(-MAX_PIXELS <= c <= MAX_PIXELS for c in item)  # also refuses NaN
+        ):
+            raise fail(f"{path}{key}[{i}]", "a pixel position [u, v]", item)
+    return np.asarray(items, dtype=float)
+
+
+def _read_view(obj: dict, sensor_id: str) -> BoardObservation:
+    check_keys(obj, _VIEW_KEYS, "view.")
+    stamp = read_float(obj, "stamp", "view.", 0.0, MAX_STAMP_S)
+    corners = _read_points(obj, "corners", "view.")
+    values = read_list(obj, "camera_from_board", "view.", 16)
+    if len(values) != 16 or any(type(c) not in (int, float) for c in values):
+        raise fail("view.camera_from_board", "16 numbers (a 4x4 matrix by rows)", values)
+    pose = np.asarray(values, dtype=float).reshape(4, 4)
+    rotation = pose[:3, :3]
+    if (
+        not np.isfinite(pose).all()
+        or not np.allclose(pose[3], [0.0, 0.0, 0.0, 1.0])
+        or not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6)
+        or np.linalg.det(rotation) < 0
+    ):
+        raise fail("view.camera_from_board", "a rigid transform", values)
+    return BoardObservation(sensor_id, stamp, corners, pose)
+
+
+def _read_intrinsics(obj: dict) -> Intrinsics:
+    check_keys(obj, _INTRINSIC_KEYS, "intrinsics.")
+    try:
+        return Intrinsics(
+            width=read_int(obj, "width", "intrinsics.", 1, MAX_PIXELS),
+            height=read_int(obj, "height", "intrinsics.", 1, MAX_PIXELS),
+            fx=read_float(obj, "fx", "intrinsics."),
+            fy=read_float(obj, "fy", "intrinsics."),
+            cx=read_float(obj, "cx", "intrinsics."),
+            cy=read_float(obj, "cy", "intrinsics."),
+        )
+    except ConfigError as exc:
+        raise WireFormatError(str(exc)) from None
+
+
+def decode_board_report(payload: bytes | bytearray | memoryview | str) -> BoardReport:
+    """A report from wire bytes.
+
+    Raises
+    ------
+    WireFormatError
+        Naming the first field that is wrong.
+    """
+    obj = parse_message(payload, KIND, _KEYS)
+    sensor_id = read_name(obj, "sensor_id", "")
+    stamp = read_float(obj, "stamp", "", 0.0, MAX_STAMP_S)
+    corners = _read_points(obj, "corners", "") if "corners" in obj else None
+    view = None
+    if "view" in obj:
+        view = _read_view(obj["view"], sensor_id)
+    intrinsics = _read_intrinsics(obj["intrinsics"]) if "intrinsics" in obj else None
+    end = read_bool(obj, "end", "", default=False)
+    return BoardReport(sensor_id, stamp, corners, view, intrinsics, end)

@@ -1,0 +1,149 @@
+"""Board reports on the wire, and the master's collector of a live board session."""
+
+from __future__ import annotations
+
+import numpy as np
+import orjson
+import pytest
+
+from openptrack_py.calibration.board_collector import BoardCollector
+from openptrack_py.calibration.board_wire import (
+    BoardReport,
+    decode_board_report,
+    encode_board_report,
+)
+from openptrack_py.calibration.observations import BoardObservation
+from openptrack_py.calibration.progress import CalibrationProgress
+from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.errors import WireFormatError
+
+K = Intrinsics(width=512, height=424, fx=365.0, fy=365.0, cx=256.0, cy=212.0)
+CORNERS = np.array([[100.5, 200.25], [120.0, 200.0], [140.0, 201.0]])
+
+
+def _pose(yaw: float = 0.3) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    pose = np.eye(4)
+    pose[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    pose[:3, 3] = [0.1, -0.2, 2.5]
+    return pose
+
+
+def _report(sensor: str = "k2_a", stamp: float = 100.0, **kw: object) -> BoardReport:
+    return BoardReport(sensor, stamp, **kw)  # type: ignore[arg-type]
+
+
+def test_every_field_round_trips() -> None:
+    view = BoardObservation("k2_a", 99.5, CORNERS + 1, _pose())
+    report = _report(corners=CORNERS, view=view, intrinsics=K, end=True)
+    back = decode_board_report(encode_board_report(report))
+    assert back.sensor_id == "k2_a" and back.stamp == 100.0 and back.end
+    np.testing.assert_array_equal(back.corners, CORNERS)
+    assert back.intrinsics == K
+    assert back.view is not None and back.view.stamp == 99.5
+    np.testing.assert_array_equal(back.view.corners, CORNERS + 1)
+    np.testing.assert_allclose(back.view.camera_from_board, _pose())
+    bare = decode_board_report(encode_board_report(_report()))
+    assert bare.corners is None and bare.view is None and bare.intrinsics is None
+    assert not bare.end
+
+
+def _wire(**fields: object) -> bytes:
+    obj = orjson.loads(encode_board_report(_report(corners=CORNERS)))
+    obj.update(fields)
+    return orjson.dumps(obj)
+
+
+@pytest.mark.parametrize(
+    ("fields", "named"),
+    [
+        ({"sensor_id": "../x"}, "sensor_id"),
+        ({"stamp": float("inf")}, "stamp"),
+        ({"corners": [[1.0, 2.0, 3.0]]}, "corners[0]"),
+        ({"corners": [[1.0, 1e9]]}, "corners[0]"),
+        ({"corners": []}, "corners"),
+        ({"corners": [[0.0, 0.0]] * 1001}, "corners"),
+        ({"end": 1}, "end"),
+        ({"extra": 1}, "extra"),
+        (
+            {
+                "intrinsics": {
+                    "width": 512,
+                    "height": 424,
+                    "fx": -1.0,
+                    "fy": 1.0,
+                    "cx": 0.0,
+                    "cy": 0.0,
+                }
+            },
+            "intrinsics.fx",
+        ),
+        (
+            {
+                "view": {
+                    "stamp": 1.0,
+                    "corners": [[1.0, 2.0]],
+                    "camera_from_board": [2.0] + [0.0] * 15,
+                }
+            },
+            "view.camera_from_board",
+        ),
+        (
+            {"view": {"stamp": 1.0, "corners": [[1.0, 2.0]], "camera_from_board": [1.0] * 4}},
+            "view.camera_from_board",
+        ),
+    ],
+)
+def test_a_wrong_field_is_named(fields: dict, named: str) -> None:
+    with pytest.raises(WireFormatError, match=named.replace("[", r"\[").replace("]", r"\]")):
+        decode_board_report(_wire(**fields))
+
+
+def test_a_bad_number_never_reaches_the_wire() -> None:
+    with pytest.raises(WireFormatError, match="corners"):
+        encode_board_report(_report(corners=np.array([[np.nan, 1.0]])))
+
+
+def test_collector_gathers_views_intrinsics_and_who_sees_the_board() -> None:
+    progress = CalibrationProgress({"k2_a": (512, 424), "k2_b": (512, 424)})
+    collector = BoardCollector(["k2_a", "k2_b"], progress, every_s=0.5)
+    collector.add(_report("k2_a", 100.0, corners=CORNERS))
+    collector.add(_report("k2_b", 100.1))  # does not see it
+    assert progress.snapshot().seeing == ("k2_a",)
+    view_a = BoardObservation("k2_a", 100.3, CORNERS, _pose())
+    collector.add(_report("k2_a", 100.4, corners=CORNERS, view=view_a, intrinsics=K))
+    # k2_b's view of the same placement, its clock 0.2 s off; then another placement
+    view_b = BoardObservation("k2_b", 100.5, CORNERS, _pose())
+    collector.add(_report("k2_b", 100.6, corners=CORNERS, view=view_b, intrinsics=K))
+    collector.add(_report("k2_b", 103.0, corners=CORNERS,
+                          view=BoardObservation("k2_b", 102.9, CORNERS, _pose())))  # fmt: skip
+    snap = progress.snapshot()
+    assert snap.views == {"k2_a": 1, "k2_b": 2} and snap.pair_views == {("k2_a", "k2_b"): 1}
+    assert snap.seeing == ("k2_b",)  # k2_a last reported 2.6 s before
+    assert len(collector.views) == 3 and collector.intrinsics == {"k2_a": K, "k2_b": K}
+    assert not collector.finished
+    collector.add(_report("k2_a", 104.0, end=True))
+    collector.add(_report("k2_b", 104.0, end=True))
+    assert collector.finished
+
+
+def test_live_reports_are_timed_by_arrival() -> None:
+    """Sensors replayed at different paces: who sees the board now is who said so last."""
+    progress = CalibrationProgress({"k2_a": (512, 424), "k2_b": (512, 424)})
+    collector = BoardCollector(["k2_a", "k2_b"], progress, every_s=0.0)
+    collector.add(_report("k2_a", 10.0, corners=CORNERS), now=500.0)
+    collector.add(_report("k2_b", 95.0, corners=CORNERS), now=500.1)
+    assert progress.snapshot().seeing == ("k2_a", "k2_b")
+
+
+def test_collector_drops_and_counts_what_it_cannot_trust() -> None:
+    progress = CalibrationProgress({"k2_a": (512, 424)})
+    collector = BoardCollector(["k2_a"], progress)
+    good = encode_board_report(_report("k2_a", corners=CORNERS))
+    collector.take("opt/default/board/k2_b", good)  # on another sensor's key
+    collector.take("opt/default/board/k2_a", b"{not json")
+    collector.take("opt/default/board/zz", encode_board_report(_report("zz")))  # unknown
+    collector.take("opt/default/board/k2_a", good)
+    assert collector.counts == {"reports": 1, "views": 0, "malformed": 1, "wrong_key": 1,
+                                "unknown": 1}  # fmt: skip
+    assert progress.snapshot().seeing == ("k2_a",) and progress.snapshot().views == {"k2_a": 0}
