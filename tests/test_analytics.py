@@ -191,17 +191,18 @@ def test_the_report_renders_every_section_in_headless_chromium(tmp_path: Path) -
 
 @pytest.mark.slow
 def test_classroom_analytics_against_ground_truth() -> None:
-    """Realistic profile, seed 41 (not looked at while the analytics were written)."""
+    """Realistic profile, seed 41 (not looked at while the analytics were written), the
+    whole lesson (170 s): every person's trajectory length within 5 %, motion area within
+    10 %, mean distance of every pair within 0.05 m of the ground truth's."""
     from openptrack_py.eval.analytics_check import check_analytics
     from openptrack_py.sim.scenarios import build_scenario
 
-    check = check_analytics(build_scenario("classroom", seed=41, duration_s=60.0,
-                                           profile="realistic"))  # fmt: skip
+    check = check_analytics(build_scenario("classroom", seed=41, profile="realistic"))
     lengths = np.array(list(check.length_errors().values()))
     areas = np.array(list(check.area_errors().values()))
     distances = np.array(list(check.distance_errors().values()))
     assert len(lengths) >= 15 and len(distances) >= 100
-    assert abs(lengths.mean()) <= 0.05 and np.abs(lengths).max() <= 0.10, lengths
+    assert np.abs(lengths).max() <= 0.05, lengths
     assert np.abs(areas).max() <= 0.10, areas
     assert np.abs(distances).max() <= 0.05, distances
     assert math.isfinite(check.result.metrics.mota)
