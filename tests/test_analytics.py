@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from openptrack_py.analytics import PeopleFrame, ZoneTracker, analyze, frames_from_recording
-from openptrack_py.analytics.people import convex_hull, polygon_area
+from openptrack_py.analytics.people import ThinnedSeries, convex_hull, polygon_area
 from openptrack_py.analytics.report import SECTIONS, write_report
 from openptrack_py.config import DoorConfig, ZoneConfig
 from openptrack_py.messages import Track, TrackBatch
@@ -46,6 +46,19 @@ def _circle_walk(seconds: float, radius: float = 3.0, speed: float = 1.0) -> np.
     t = np.arange(0.0, seconds, 1.0 / RATE)
     angle = t * speed / radius
     return np.column_stack([T0 + t, radius * np.cos(angle), radius * np.sin(angle)])
+
+
+@pytest.mark.parametrize("offered", [1, 7, 8, 9, 100, 1000, 12345])
+def test_a_thinned_series_keeps_at_most_its_capacity_evenly_spread(offered: int) -> None:
+    series = ThinnedSeries(8, 2)
+    for i in range(offered):
+        series.offer(float(i), 2.0 * i)
+    rows = series.array()
+    assert 1 <= len(rows) <= 8 and rows[0, 0] == 0.0
+    assert np.all(np.diff(rows[:, 0]) == series.every)  # every kept row, equally spaced
+    assert offered - 1 - rows[-1, 0] < series.every  # the latest kept is recent
+    assert offered <= 8 or len(rows) >= 4  # thinning never drops below half
+    np.testing.assert_array_equal(rows[:, 1], 2.0 * rows[:, 0])
 
 
 def test_a_known_walk_gives_its_length_area_and_speed() -> None:

@@ -22,13 +22,60 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["PersonSummary", "PersonTally", "convex_hull", "polygon_area"]
+__all__ = ["PersonSummary", "PersonTally", "ThinnedSeries", "convex_hull", "polygon_area"]
 
 TILE = 16
 """Cells per side of the tiles a person's time per cell is kept in (4 m of 0.25 m cells):
 a few kilobytes each, only where the person went."""
 SPEED_BINS_MPS = (0.0, 0.2, 0.5, 1.0, 1.5, 2.0, 3.0, math.inf)
 """Edges of the speed histogram (standing, shuffling, walking slowly, walking, fast...)."""
+
+
+class ThinnedSeries:
+    """At most ``capacity`` rows of a long series, evenly spread over all of it.
+
+    Every ``every``-th row offered is kept; when the rows fill ``capacity``, every other
+    one is dropped and ``every`` doubles. Rows live in one float array grown by doubling,
+    so an hour of a person's trajectory takes at most ``capacity`` rows of 8-byte numbers
+    (not a Python tuple per point).
+
+    Parameters
+    ----------
+    capacity : int
+        Most rows kept (at least 2).
+    width : int
+        Numbers per row.
+    """
+
+    def __init__(self, capacity: int, width: int) -> None:
+        self.capacity = max(2, capacity)
+        self.every = 1
+        self._rows = np.empty((min(16, self.capacity), width))
+        self._n = 0
+        self._offered = 0
+
+    def offer(self, *row: float) -> None:
+        """The next row of the series (kept or not)."""
+        self._offered += 1
+        if (self._offered - 1) % self.every:
+            return
+        if self._n == self.capacity:  # full: keep every other row, keep half as often
+            kept = self._rows[0 : self._n : 2].copy()
+            self._n = len(kept)
+            self._rows[: self._n] = kept
+            self.every *= 2
+            if (self._offered - 1) % self.every:
+                return
+        if self._n == len(self._rows):
+            grown = np.empty((min(2 * len(self._rows), self.capacity), self._rows.shape[1]))
+            grown[: self._n] = self._rows[: self._n]
+            self._rows = grown
+        self._rows[self._n] = row
+        self._n += 1
+
+    def array(self) -> np.ndarray:
+        """The rows kept, in order (a copy)."""
+        return self._rows[: self._n].copy()
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:
@@ -174,14 +221,13 @@ class PersonTally:
     _pending: list[tuple[float, float]] = field(default_factory=list)
     _tiles: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
     _speeds: np.ndarray = field(default_factory=lambda: np.zeros(len(SPEED_BINS_MPS) - 1))
-    _momentum: list[tuple[float, float]] = field(default_factory=list)
-    _path: list[tuple[float, float, float]] = field(default_factory=list)
-    _path_every: int = 1
-    _momentum_every_s: float = 0.0
-    _path_seen: int = 0
+    _momentum: ThinnedSeries = field(init=False)
+    _path: ThinnedSeries = field(init=False)
+    _momentum_t: float = -math.inf
 
     def __post_init__(self) -> None:
-        self._momentum_every_s = self.momentum_every_s
+        self._momentum = ThinnedSeries(self.max_plot_points, 2)
+        self._path = ThinnedSeries(self.max_plot_points, 3)
 
     def add(self, t: float, x: float, y: float, dt: float, name: str | None = None) -> None:
         """The person is at ``(x, y)`` at ``t``, for ``dt`` seconds of the recording."""
@@ -211,17 +257,10 @@ class PersonTally:
         if len(self._pending) >= 256:
             self._fold_hull()
         self._step(t, x, y, gap)
-        if not self._momentum or t - self._momentum[-1][0] >= self._momentum_every_s:
-            self._momentum.append((t, self.length_m))
-            if len(self._momentum) > self.max_plot_points:  # an hour-long recording
-                self._momentum = self._momentum[::2]
-                self._momentum_every_s *= 2
-        self._path_seen += 1
-        if self._path_seen % self._path_every == 0:
-            self._path.append((t, x, y))
-            if len(self._path) > self.max_plot_points:
-                self._path = self._path[::2]
-                self._path_every *= 2
+        if t - self._momentum_t >= self.momentum_every_s:
+            self._momentum_t = t
+            self._momentum.offer(t, self.length_m)
+        self._path.offer(t, x, y)
 
     def _step(self, t: float, x: float, y: float, gap: float) -> None:
         if self._anchor is None or gap > self.max_gap_s:
@@ -269,7 +308,7 @@ class PersonTally:
         length = self._length_to_latest()
         lo, hi = self._lo, self._hi
         bbox = (lo[0], lo[1], hi[0], hi[1])
-        momentum = list(self._momentum)
+        momentum = [(float(a), float(b)) for a, b in self._momentum.array()]
         if self.last_t is not None and (not momentum or momentum[-1][0] < self.last_t):
             momentum.append((self.last_t, length))
         return PersonSummary(
@@ -288,5 +327,5 @@ class PersonTally:
             speed_histogram_s=[round(float(v), 3) for v in self._speeds],
             momentum=momentum,
             hull=self._hull.copy(),
-            path=np.array(self._path, dtype=float).reshape(-1, 3),
+            path=self._path.array(),
         )
