@@ -7,13 +7,17 @@ runs of frames in which it is held still, and publishes a compact report per fra
 ``opt/<site>/board/<sensor_id>``: the corners seen, each completed still view with the
 sensor's intrinsics, and a last report when the source runs out. The images never leave
 the machine. ``openptrack calibrate checkerboard NETWORK --live SECONDS`` on the master
-gathers the reports and solves every pose. It runs under the detector's name, so a
-secured site's sensor certificate is the one it uses.
+gathers the reports and solves every pose. A simulated sensor (with no ``--input``)
+renders its view of the network's scripted board session (``--seed``,
+``--placements``, ``--speed``), the one ``calibrate checkerboard --sim`` runs. The node
+runs under the detector's name, so a secured site's sensor certificate is the one it
+uses.
 
 Typical usage::
 
     openptrack node board -c site.yaml --sensor k2_a
     openptrack node board -c site.yaml --sensor k2_a --input recordings/k2_a
+    openptrack node board -c demo --sensor k2_a --speed 4      # a simulated sensor
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from openptrack_py.calibration.checkerboard import Checkerboard
 from openptrack_py.config import NetworkConfig
 from openptrack_py.detection.service import source_for_sensor
 from openptrack_py.errors import ConfigError, SourceError
+from openptrack_py.eval.board_stream import SimBoardSource
 from openptrack_py.runtime.entry import run_sensor_node, sensor_node_parser
 from openptrack_py.runtime.node import Node
 
@@ -35,9 +40,13 @@ from openptrack_py.runtime.node import Node
 def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     """Report the board until the source ends or the node is stopped."""
     sensor = cfg.sensor(args.sensor)
+    board = Checkerboard.parse(args.board)
     try:
-        board = Checkerboard.parse(args.board)
-        source = source_for_sensor(cfg, sensor, args.input)
+        if sensor.source == "sim" and args.input is None:
+            source = SimBoardSource(cfg, sensor.id, board, seed=args.seed,
+                                    placements=args.placements, speed=args.speed)  # fmt: skip
+        else:
+            source = source_for_sensor(cfg, sensor, args.input)
     except SourceError as exc:
         raise ConfigError(f"sensors.{sensor.id}: {exc}") from None
     views = StillBoardViews(sensor.id, sensor.type, board)
@@ -70,6 +79,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="ROWSxCOLSxSQUARE",
         help="inner corners and square side in metres (default OpenPTrack's 5x6x0.12)",
     )
+    sim = parser.add_argument_group("a simulated sensor (no --input): the scripted session")
+    sim.add_argument("--seed", type=int, default=0, help="session seed (the same for all)")
+    sim.add_argument("--placements", type=int, default=30, help="board placements")
+    sim.add_argument("--speed", type=float, default=1.0, help="times real time (0: no pacing)")
     return run_sensor_node("board", parser, main_loop, argv)
 
 

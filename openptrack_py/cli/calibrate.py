@@ -220,12 +220,12 @@ def run_checkerboard(args: argparse.Namespace) -> int:
 
 def _checkerboard_sim(network: NetworkConfig, args: argparse.Namespace) -> Any:
     from openptrack_py.calibration.progress import CalibrationProgress
-    from openptrack_py.cli.calibrate_board import sim_sensors
-    from openptrack_py.eval.checkerboard import SimSensor, simulate_checkerboard_calibration
+    from openptrack_py.eval.board_stream import sim_sensors
+    from openptrack_py.eval.checkerboard import simulate_checkerboard_calibration
     from openptrack_py.sensor_types import SENSOR_TYPES
     from openptrack_py.sim.live import scenario_from_network
 
-    sensors = [SimSensor.from_config(s) for s in sim_sensors(network)]
+    sensors = sim_sensors(network)
     room = scenario_from_network(network, calibrated=False).room
     sizes = {s.id: (SENSOR_TYPES[s.type].width, SENSOR_TYPES[s.type].height) for s in sensors}
     progress = _TerminalProgress(CalibrationProgress(sizes))

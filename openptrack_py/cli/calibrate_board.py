@@ -26,8 +26,6 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from openptrack_py.errors import CalibrationError
 
 
@@ -38,27 +36,15 @@ def board_from_arg(text: str) -> Any:
     return Checkerboard.parse(text)
 
 
-def sim_sensors(network: Any) -> list[Any]:
-    """The network's simulated sensors with a pose (at least two)."""
-    simulated = [s for s in network.sensors if s.source == "sim" and s.pose is not None]
-    if len(simulated) < 2:
-        raise ValueError("--sim needs at least two simulated sensors with a pose")
-    return simulated
-
-
 def record_sim(network: Any, args: argparse.Namespace) -> list[Path]:
     """Write the network's simulated session as one recording per sensor."""
-    from openptrack_py.eval.checkerboard import SimSensor, record_board_session
-    from openptrack_py.sim.board_session import board_session
-    from openptrack_py.sim.live import scenario_from_network
+    from openptrack_py.eval.board_stream import sim_board_session
+    from openptrack_py.eval.checkerboard import record_board_session
 
-    sensors = [SimSensor.from_config(s) for s in sim_sensors(network)]
-    room = scenario_from_network(network, calibrated=False).room
     board = board_from_arg(args.board)
-    session = board_session(
-        board, room, [s.spec() for s in sensors], np.random.default_rng(args.seed),
-        placements=args.placements,
-    )  # fmt: skip
+    sensors, room, session = sim_board_session(
+        network, board, seed=args.seed, placements=args.placements
+    )
     folders = record_board_session(sensors, room, session, args.record, seed=args.seed + 1)
     return list(folders.values())
 

@@ -36,7 +36,7 @@ from openptrack_py.calibration.intrinsics import calibrate_intrinsics
 from openptrack_py.calibration.observations import BoardObservation
 from openptrack_py.calibration.progress import CalibrationProgress
 from openptrack_py.config import Pose, SensorConfig
-from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.detection.frame import Frame, Intrinsics
 from openptrack_py.errors import CalibrationError, ConfigError
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.sensor_types import SENSOR_TYPES
@@ -205,7 +205,7 @@ def render_observations(
     list of BoardObservation
         One per frame where the board was found.
     """
-    rigs = _rigs(sensors, room, seed)
+    rigs = sensor_rigs(sensors, room, seed)
     out: list[BoardObservation] = []
     for seq, placement in enumerate(session.placements):
         found: dict[str, np.ndarray | None] = {}
@@ -224,7 +224,7 @@ def render_observations(
 
 
 @dataclass(frozen=True, eq=False)
-class _Rig:
+class SensorRig:
     """One simulated sensor as it captures the session."""
 
     sensor: SimSensor
@@ -234,7 +234,7 @@ class _Rig:
     phase: float  # capture delay after each placement's stamp (sensors are not in sync)
 
 
-def _rigs(sensors: Sequence[SimSensor], room: Room, seed: int) -> list[_Rig]:
+def sensor_rigs(sensors: Sequence[SimSensor], room: Room, seed: int) -> list[SensorRig]:
     """Each sensor's renderers, noise source and capture phase, seeded from ``seed``."""
     seeds = np.random.SeedSequence(seed).spawn(len(sensors))
     rigs = []
@@ -242,7 +242,7 @@ def _rigs(sensors: Sequence[SimSensor], room: Room, seed: int) -> list[_Rig]:
         spec = sensor.spec()
         rng = np.random.default_rng(ss)
         rigs.append(
-            _Rig(
+            SensorRig(
                 sensor,
                 DepthRenderer(spec, room, rng),
                 DepthRenderer(spec, room, rng, noise=False),
@@ -254,7 +254,7 @@ def _rigs(sensors: Sequence[SimSensor], room: Room, seed: int) -> list[_Rig]:
 
 
 def _capture(
-    rig: _Rig, board: Checkerboard, placement: BoardPlacement, seq: int, frames: int
+    rig: SensorRig, board: Checkerboard, placement: BoardPlacement, seq: int, frames: int
 ) -> BoardView | None:
     """One sensor's view of one placement: its frames' corners averaged.
 
@@ -306,35 +306,40 @@ def record_board_session(
     dict of str to Path
         Each sensor's folder.
     """
-    from openptrack_py.detection.frame import Frame
     from openptrack_py.detection.sources import record_folder
 
     out: dict[str, Path] = {}
-    for rig in _rigs(sensors, room, seed):
-        sensor = rig.sensor
-        period = 1.0 / sensor.spec().rate_hz
-
-        def frames(rig: _Rig = rig, period: float = period) -> Iterator[Frame]:
-            for seq, placement in enumerate(session.placements):
-                stamp = placement.stamp + rig.phase
-                snap = holder_snapshot(placement, stamp)
-                scene = rig.truth.render(snap, stamp, seq).frame.depth
-                for i in range(floor_frames if placement.on_floor else held_frames):
-                    yield draw_board(
-                        rig.renderer.render(snap, stamp + i * period, seq),
-                        session.board,
-                        placement.world_from_board,
-                        rig.renderer.world_from_camera,
-                        rig.renderer.intrinsics,
-                        sensor_type=rig.sensor.type,
-                        rng=rig.rng,
-                        scene_depth=scene,
-                    ).frame
-
-        folder = out_dir / sensor.id
-        record_folder(frames(), folder)
-        out[sensor.id] = folder
+    for rig in sensor_rigs(sensors, room, seed):
+        folder = out_dir / rig.sensor.id
+        record_folder(session_frames(rig, session, held_frames, floor_frames), folder)
+        out[rig.sensor.id] = folder
     return out
+
+
+def session_frames(
+    rig: SensorRig, session: BoardSession, held_frames: int = 4, floor_frames: int = 8
+) -> Iterator[Frame]:
+    """One sensor's frames of a session, in order.
+
+    ``held_frames`` of each held placement (the board still), ``floor_frames`` of the
+    board on the floor, none while it is carried between placements.
+    """
+    period = 1.0 / rig.sensor.spec().rate_hz
+    for seq, placement in enumerate(session.placements):
+        stamp = placement.stamp + rig.phase
+        snap = holder_snapshot(placement, stamp)
+        scene = rig.truth.render(snap, stamp, seq).frame.depth
+        for i in range(floor_frames if placement.on_floor else held_frames):
+            yield draw_board(
+                rig.renderer.render(snap, stamp + i * period, seq),
+                session.board,
+                placement.world_from_board,
+                rig.renderer.world_from_camera,
+                rig.renderer.intrinsics,
+                sensor_type=rig.sensor.type,
+                rng=rig.rng,
+                scene_depth=scene,
+            ).frame
 
 
 def refit_intrinsics(

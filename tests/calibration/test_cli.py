@@ -284,8 +284,8 @@ def test_checkerboard_recordings_name_a_missing_sensor(tmp_path: Path) -> None:
 def test_checkerboard_live_from_each_sensors_board_node(
     board_session: Path, tmp_path: Path, spawn: Callable[..., subprocess.Popen[str]]
 ) -> None:
-    """Each sensor's machine runs ``openptrack node board`` on its frames (here its
-    recording, read as fast as it goes); ``calibrate checkerboard --live`` gathers their
+    """Each sensor's machine runs ``openptrack node board`` on its frames (a recording,
+    or a simulated sensor's rendering); ``calibrate checkerboard --live`` gathers their
     reports over Zenoh and solves; the web view shows the session's progress."""
     web = pytest.importorskip("tests.test_web")
     from tests.conftest import free_port, stop_process, wait_for
@@ -309,20 +309,17 @@ def test_checkerboard_live_from_each_sensors_board_node(
                    *zenoh, name="output")  # fmt: skip
     url = f"http://127.0.0.1:{web_port}/"
     wait_for(lambda: _serves(url), 30, "the web view")
+    # k2_a's machine reads its recording of the session; k2_b and k2_c are simulated
+    # sensors rendering their view of the same scripted session as it goes
+    sources = {
+        "k2_a": ("--input", str(board_session / "k2_a")),
+        "k2_b": ("--placements", "16", "--speed", "0"),
+        "k2_c": ("--placements", "16", "--speed", "0"),
+    }
+    board = ("-m", "openptrack_py.nodes.board", "-c", str(network))
     boards = [
-        spawn(
-            "-m",
-            "openptrack_py.nodes.board",
-            "-c",
-            str(network),
-            "--sensor",
-            sid,
-            "--input",
-            str(board_session / sid),
-            *zenoh,
-            name=sid,
-        )
-        for sid in ("k2_a", "k2_b", "k2_c")
+        spawn(*board, "--sensor", sid, *source, *zenoh, name=sid)
+        for sid, source in sources.items()
     ]
     try:
         stdout, stderr = calibrate.communicate(timeout=180)
@@ -331,8 +328,8 @@ def test_checkerboard_live_from_each_sensors_board_node(
             calibrate.kill()
     done = subprocess.CompletedProcess(command, calibrate.returncode, stdout, stderr)
     _assert_board_calibration(done, out)
-    for board in boards:
-        assert board.wait(timeout=30) == 0, board.log_path.read_text()[-2000:]  # type: ignore[attr-defined]
+    for node in boards:
+        assert node.wait(timeout=30) == 0, node.log_path.read_text()[-2000:]  # type: ignore[attr-defined]
     assert "reports dropped" not in stderr
     if web.CHROMIUM is None:
         stop_process(output)
