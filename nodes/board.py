@@ -52,6 +52,10 @@ def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     views = StillBoardViews(sensor.id, sensor.type, board)
     publisher = node.publisher(node.keys.board(sensor.id))
     node.log.info("board", extra={"fields": {"sensor": sensor.id, "source": source.name}})
+    if not publisher.has_subscribers():  # a recording played to nobody would be lost
+        node.log.info("waiting for 'openptrack calibrate checkerboard --live' to listen")
+        while node.running and not publisher.has_subscribers():
+            node.wait(0.2)
     stamp = 0.0
     try:
         for frame in source.frames():

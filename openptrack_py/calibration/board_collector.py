@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Iterable, Sequence
+from dataclasses import replace
 from typing import Any, Protocol
 
 from openptrack_py.calibration.board_wire import BoardReport, decode_board_report
@@ -51,6 +52,9 @@ class BoardCollector:
         Updated as the reports come.
     every_s : float
         Report time between two progress updates.
+    board : tuple of (int, int, float), optional
+        The board expected (rows, columns, square side): a view of another board is
+        counted as ``other_board`` and dropped (its sensor is in :attr:`other_board`).
     """
 
     def __init__(
@@ -58,11 +62,16 @@ class BoardCollector:
         sensors: Iterable[str],
         progress: ProgressDisplay | None = None,
         every_s: float = PROGRESS_EVERY_S,
+        board: tuple[int, int, float] | None = None,
     ) -> None:
         self.sensors = tuple(sensors)
         self.progress = progress
         self.every_s = every_s
-        self.counts = {"reports": 0, "views": 0, "malformed": 0, "wrong_key": 0, "unknown": 0}
+        self.board = board
+        self.counts = {"reports": 0, "views": 0, "malformed": 0, "wrong_key": 0, "unknown": 0,
+                       "other_board": 0}  # fmt: skip
+        self.other_board: dict[str, tuple[int, int, float]] = {}
+        self.reporting: set[str] = set()
         self._views: list[BoardObservation] = []
         self._intrinsics: dict[str, Intrinsics] = {}
         self._latest: dict[str, tuple[float, bool]] = {}
@@ -87,9 +96,15 @@ class BoardCollector:
         if report.sensor_id not in self.sensors:
             self._count("unknown")
             return
+        if report.view is not None and not self._same_board(report.board):
+            with self._lock:
+                self.counts["other_board"] += 1
+                self.other_board[report.sensor_id] = report.board  # type: ignore[assignment]
+            report = replace(report, view=None)
         with self._lock:
             self.counts["reports"] += 1
             sid = report.sensor_id
+            self.reporting.add(sid)
             if report.intrinsics is not None:
                 self._intrinsics[sid] = report.intrinsics
             if report.view is not None:
@@ -106,6 +121,11 @@ class BoardCollector:
         if due and self.progress is not None:
             views = [] if report.view is None else [report.view]
             self.progress.observe(report.stamp, seeing, views)
+
+    def _same_board(self, board: tuple[int, int, float] | None) -> bool:
+        if self.board is None or board is None:
+            return True
+        return board[:2] == self.board[:2] and math.isclose(board[2], self.board[2], rel_tol=1e-6)
 
     def _count(self, what: str) -> None:
         with self._lock:

@@ -9,7 +9,8 @@ A report says, for one frame: where the board's inner corners are in the image (
 it is not seen); the still view the frame completed, if any (a run of frames in which
 the board was held still, its corners averaged and its pose in the camera, see
 :class:`~openptrack_py.calibration.capture.StillBoardViews`); the sensor's intrinsics
-with every completed view; and ``end`` when the sensor's source ran out.
+and the board it looks for with every completed view; and ``end`` when the sensor's
+source ran out.
 
 Wire form: one JSON object with the envelope of every message (``"v"``, ``"kind":
 "board"``); :func:`decode_board_report` checks every field as strictly as the other
@@ -19,6 +20,7 @@ that is wrong.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,7 +49,9 @@ MAX_CORNERS = 1000
 """Most inner corners of a board (a 25 x 40 board is already unusually fine)."""
 MAX_PIXELS = 100_000
 """Largest image side, pixels."""
-_KEYS = frozenset({"v", "kind", "sensor_id", "stamp", "corners", "view", "intrinsics", "end"})
+_KEYS = frozenset(
+    {"v", "kind", "sensor_id", "stamp", "corners", "view", "intrinsics", "board", "end"}
+)
 _VIEW_KEYS = frozenset({"stamp", "corners", "camera_from_board"})
 _INTRINSIC_KEYS = frozenset({"width", "height", "fx", "fy", "cx", "cy"})
 
@@ -69,6 +73,10 @@ class BoardReport:
         The still view this frame completed, if any.
     intrinsics : Intrinsics or None
         The sensor's camera model (sent with every completed view).
+    board : tuple of (int, int, float) or None
+        The board the sensor looks for: inner corners (rows, columns) and square
+        side in metres (sent with every completed view, so that a master expecting
+        another board can refuse the view rather than solve at the wrong scale).
     end : bool
         The sensor's source ran out: no more reports will come.
     """
@@ -78,6 +86,7 @@ class BoardReport:
     corners: np.ndarray | None = None
     view: BoardObservation | None = None
     intrinsics: Intrinsics | None = None
+    board: tuple[int, int, float] | None = None
     end: bool = False
 
 
@@ -113,6 +122,11 @@ def encode_board_report(report: BoardReport) -> bytes:
         k = report.intrinsics
         obj["intrinsics"] = {"width": k.width, "height": k.height, "fx": k.fx, "fy": k.fy,
                              "cx": k.cx, "cy": k.cy}  # fmt: skip
+    if report.board is not None:
+        rows, cols, square = report.board
+        if not (math.isfinite(square) and square > 0):
+            raise WireFormatError("board: the square side must be a positive number")
+        obj["board"] = [int(rows), int(cols), float(square)]
     if report.end:
         obj["end"] = True
     return dump_message(obj)
@@ -167,6 +181,18 @@ def _read_intrinsics(obj: dict) -> Intrinsics:
         raise WireFormatError(str(exc)) from None
 
 
+def _read_board(obj: dict) -> tuple[int, int, float]:
+    value = read_list(obj, "board", "", 3)
+    if (
+        len(value) != 3
+        or any(type(n) is not int or not 2 <= n <= MAX_CORNERS for n in value[:2])
+        or type(value[2]) not in (int, float)
+        or not 0 < value[2] <= 10.0
+    ):
+        raise fail("board", "[rows, cols, square side in metres]", value)
+    return int(value[0]), int(value[1]), float(value[2])
+
+
 def decode_board_report(payload: bytes | bytearray | memoryview | str) -> BoardReport:
     """A report from wire bytes.
 
@@ -183,5 +209,6 @@ def decode_board_report(payload: bytes | bytearray | memoryview | str) -> BoardR
     if "view" in obj:
         view = _read_view(obj["view"], sensor_id)
     intrinsics = _read_intrinsics(obj["intrinsics"]) if "intrinsics" in obj else None
+    board = _read_board(obj) if "board" in obj else None
     end = read_bool(obj, "end", "", default=False)
-    return BoardReport(sensor_id, stamp, corners, view, intrinsics, end)
+    return BoardReport(sensor_id, stamp, corners, view, intrinsics, board, end)

@@ -94,6 +94,7 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
     from openptrack_py.runtime.args import bus_from_args
     from openptrack_py.transport.keys import SiteKeys
 
+    board = board_from_arg(args.board)  # a bad --board is refused before listening
     keys = SiteKeys(network.site)
     with bus_from_args(network, args) as bus:
         publisher = bus.publisher(keys.board_progress)
@@ -102,7 +103,9 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
             publisher.put(orjson.dumps({**snapshot.to_dict(), "site": network.site}))
 
         shown = _Announced(progress_view(_progress(network)), publish)
-        collector = BoardCollector([s.id for s in network.sensors], shown)
+        collector = BoardCollector(
+            [s.id for s in network.sensors], shown, board=(board.rows, board.cols, board.square_m)
+        )
         subscription = bus.subscribe(
             keys.board("*"), lambda s: collector.take(s.key, s.payload, time.monotonic())
         )
@@ -120,11 +123,19 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
     if dropped:
         text = ", ".join(f"{n} {k}" for k, n in dropped.items())
         print(f"checkerboard: reports dropped: {text}", file=sys.stderr)
-    silent = [sid for sid, k in collector.intrinsics.items() if k is None]
-    if len(silent) == len(network.sensors):
+    if collector.other_board:
+        theirs = ", ".join(
+            f"{sid} {r}x{c}x{q:g}" for sid, (r, c, q) in sorted(collector.other_board.items())
+        )
         raise CalibrationError(
-            f"checkerboard: no sensor reported the board in {args.live:g} s (is "
-            "'openptrack node board' running on each sensor's machine?)"
+            f"checkerboard: board nodes look for another board than --board {args.board} "
+            f"({theirs}); give every node and this command the same --board"
+        )
+    silent = [s.id for s in network.sensors if s.id not in collector.reporting]
+    if silent:
+        raise CalibrationError(
+            f"checkerboard: no report from {', '.join(silent)} in {args.live:g} s (start "
+            "'openptrack node board' on each sensor's machine after this command)"
         )
     return solve(network, args, collector)
 

@@ -83,8 +83,8 @@ def build_zenoh_config(
     if cfg.hub is not None:
         if as_hub:
             listen_eps = [cfg.hub, *[e for e in listen_eps if e != cfg.hub]]
-        elif cfg.hub not in connect_eps:
-            connect_eps.append(cfg.hub)
+        elif cfg.hub not in connect_eps and cfg.hub not in listen_eps:
+            connect_eps.append(cfg.hub)  # (a session listening on the hub is the hub)
     entries = {
         "mode": json.dumps(cfg.mode),
         "listen/endpoints": json.dumps(listen_eps if cfg.mode == "peer" or as_hub else []),

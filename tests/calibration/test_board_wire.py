@@ -35,9 +35,10 @@ def _report(sensor: str = "k2_a", stamp: float = 100.0, **kw: object) -> BoardRe
 
 def test_every_field_round_trips() -> None:
     view = BoardObservation("k2_a", 99.5, CORNERS + 1, _pose())
-    report = _report(corners=CORNERS, view=view, intrinsics=K, end=True)
+    report = _report(corners=CORNERS, view=view, intrinsics=K, board=(5, 6, 0.12), end=True)
     back = decode_board_report(encode_board_report(report))
     assert back.sensor_id == "k2_a" and back.stamp == 100.0 and back.end
+    assert back.board == (5, 6, 0.12)
     np.testing.assert_array_equal(back.corners, CORNERS)
     assert back.intrinsics == K
     assert back.view is not None and back.view.stamp == 99.5
@@ -64,6 +65,9 @@ def _wire(**fields: object) -> bytes:
         ({"corners": []}, "corners"),
         ({"corners": [[0.0, 0.0]] * 1001}, "corners"),
         ({"end": 1}, "end"),
+        ({"board": [5, 6]}, "board"),
+        ({"board": [5, 6, -0.1]}, "board"),
+        ({"board": [5.0, 6, 0.1]}, "board"),
         ({"extra": 1}, "extra"),
         (
             {
@@ -136,6 +140,16 @@ def test_live_reports_are_timed_by_arrival() -> None:
     assert progress.snapshot().seeing == ("k2_a", "k2_b")
 
 
+def test_a_view_of_another_board_is_dropped_and_its_sensor_named() -> None:
+    collector = BoardCollector(["k2_a", "k2_b"], board=(5, 6, 0.12))
+    view = BoardObservation("k2_a", 100.0, CORNERS, _pose())
+    collector.add(_report("k2_a", view=view, intrinsics=K, board=(5, 6, 0.10)))
+    collector.add(_report("k2_b", view=view, intrinsics=K, board=(5, 6, 0.12)))
+    assert collector.other_board == {"k2_a": (5, 6, 0.10)}
+    assert collector.counts["other_board"] == 1 and len(collector.views) == 1
+    assert collector.reporting == {"k2_a", "k2_b"}
+
+
 def test_collector_drops_and_counts_what_it_cannot_trust() -> None:
     progress = CalibrationProgress({"k2_a": (512, 424)})
     collector = BoardCollector(["k2_a"], progress)
@@ -145,5 +159,5 @@ def test_collector_drops_and_counts_what_it_cannot_trust() -> None:
     collector.take("opt/default/board/zz", encode_board_report(_report("zz")))  # unknown
     collector.take("opt/default/board/k2_a", good)
     assert collector.counts == {"reports": 1, "views": 0, "malformed": 1, "wrong_key": 1,
-                                "unknown": 1}  # fmt: skip
+                                "unknown": 1, "other_board": 0}  # fmt: skip
     assert progress.snapshot().seeing == ("k2_a",) and progress.snapshot().views == {"k2_a": 0}

@@ -369,6 +369,19 @@ def test_checkerboard_live_from_each_sensors_board_node(
     assert not browser.page_errors(), browser.page_errors()
 
 
+@pytest.mark.zenoh
+def test_a_live_session_names_the_sensors_that_never_reported() -> None:
+    from tests.conftest import free_port
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    zenoh = ("-l", endpoint, "--no-multicast-scouting")
+    done = _cli("checkerboard", "demo", "--live", "30", "--board", "5x6", *zenoh, timeout=20)
+    assert done.returncode == 2 and "--board: expected ROWSxCOLSxSQUARE" in done.stderr
+    done = _cli("checkerboard", "demo", "--live", "1", *zenoh)
+    assert done.returncode == 2
+    assert "no report from k2_a, k2_b, k2_c in 1 s" in done.stderr
+
+
 def _serves(url: str) -> bool:
     import urllib.request
 
