@@ -105,7 +105,7 @@ class SensorCalibration(StrictModel):
         Calibrated intrinsics.
     floor : tuple of float, optional
         Floor plane ``a, b, c, d`` in the optical frame.
-    residuals : dict of str to float
+    residuals : dict of str to int or float
         Figures of merit of the method (e.g. ``reprojection_px``, ``disagreement_m``).
     method : {"manual", "checkerboard", "walk", "refinement", "floor"}
         How the entry was obtained.
@@ -119,7 +119,7 @@ class SensorCalibration(StrictModel):
     clock_offset_s: float = Field(0.0, ge=-3600.0, le=3600.0)
     intrinsics: CameraIntrinsics | None = None
     floor: tuple[float, float, float, float] | None = None
-    residuals: dict[str, float] = Field(default_factory=dict)
+    residuals: dict[str, int | float] = Field(default_factory=dict)
     method: Method = "manual"
     date: datetime | None = None
 
