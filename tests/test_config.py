@@ -13,6 +13,7 @@ from pydantic import ValidationError
 from openptrack_py.config import (
     NetworkConfig,
     SensorConfig,
+    ZenohConfig,
     apply_overrides,
     load_network,
     read_yaml,
@@ -254,6 +255,22 @@ def test_an_unresolvable_hub_is_named_before_zenoh_starts() -> None:
     cfg = load_network(DEMO, ["zenoh.hub=tcp/no-such-host.invalid:7447"]).zenoh
     with pytest.raises(ConfigError, match=r"zenoh\.hub: cannot resolve the host"):
         check_resolvable(cfg)
+
+
+@pytest.mark.zenoh
+def test_a_listen_endpoint_another_process_holds_is_named() -> None:
+    import socket
+
+    from openptrack_py.transport.zenoh_bus import ZenohBus
+
+    with socket.socket() as holder:
+        holder.bind(("127.0.0.1", 0))
+        holder.listen()
+        endpoint = f"tcp/127.0.0.1:{holder.getsockname()[1]}"
+        cfg = ZenohConfig(hub=None, listen=[endpoint], multicast_scouting=False)
+        with pytest.raises(ConfigError, match=rf"zenoh\.listen\.0: cannot listen on {endpoint}: "
+                           "the address is already in use"):  # fmt: skip
+            ZenohBus(cfg)
 
 
 def test_zenoh_hub_may_be_disabled() -> None:

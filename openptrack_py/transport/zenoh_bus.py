@@ -9,6 +9,7 @@ only where the network file says. Reliable publishers use ``CongestionControl.BL
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import logging
 import socket
@@ -175,6 +176,33 @@ def check_resolvable(
             raise ConfigError(f"{key}: cannot resolve the host of {endpoint!r} ({exc})") from None
 
 
+def busy_listen_endpoint(
+    cfg: ZenohConfig,
+    *,
+    listen: Sequence[str] | None = None,
+    as_hub: bool = False,
+) -> tuple[str, str] | None:
+    """The first TCP endpoint this session would listen on that another process holds.
+
+    Asked after Zenoh refused to open a session, to say which endpoint is taken (Zenoh
+    says only ``ZError``). Returns ``(key, endpoint)`` or ``None``.
+    """
+    for key, endpoint in cfg.named_endpoints(listen, None):
+        listens = key.startswith("zenoh.listen") or (key == "zenoh.hub" and as_hub)
+        protocol, _, address = endpoint.partition("/")
+        if not listens or protocol != "tcp":
+            continue
+        host, port = split_host_port(address.split("#", 1)[0])
+        try:
+            family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
+            with socket.socket(family, socket.SOCK_STREAM) as probe:
+                probe.bind((host.strip("[]"), int(port)))
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                return key, endpoint
+    return None
+
+
 def _first_line(exc: BaseException) -> str:
     """An exception's message without the source locations a Rust error may carry."""
     lines = [ln for ln in str(exc).splitlines() if ln.strip() and ".rs:" not in ln]
@@ -220,6 +248,12 @@ class ZenohBus:
         try:
             self.session = zenoh.open(zcfg)
         except Exception as exc:
+            busy = busy_listen_endpoint(self.config, listen=listen, as_hub=as_hub)
+            if busy is not None:
+                raise ConfigError(
+                    f"{busy[0]}: cannot listen on {busy[1]}: the address is already in use "
+                    "(another node or launcher listens there; pick another port)"
+                ) from None
             raise ConfigError(f"zenoh: cannot open a session: {_first_line(exc)}") from None
         self._closed = False
         self._lock = threading.Lock()
