@@ -134,8 +134,8 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
     silent = [s.id for s in network.sensors if s.id not in collector.reporting]
     if silent:
         raise CalibrationError(
-            f"checkerboard: no report from {', '.join(silent)} in {args.live:g} s (start "
-            "'openptrack node board' on each sensor's machine after this command)"
+            f"checkerboard: no report from {', '.join(silent)} in {args.live:g} s (is "
+            "'openptrack node board' running on each sensor's machine, reaching this one?)"
         )
     return solve(network, args, collector)
 
