@@ -1,6 +1,6 @@
 """Board node: what one sensor sees of the checkerboard during a calibration session.
 
-Runs on the sensor's machine in place of (or beside) its detector while someone moves
+Runs on the sensor's machine in place of its detector while someone moves
 the board through the room (Munaro et al., OpenPTrack, §4). It finds the board in each
 of the sensor's frames (colour, or infrared for time-of-flight sensors), follows the
 runs of frames in which it is held still, and publishes a compact report per frame on
@@ -11,7 +11,8 @@ gathers the reports and solves every pose. A simulated sensor (with no ``--input
 renders its view of the network's scripted board session (``--seed``,
 ``--placements``, ``--speed``), the one ``calibrate checkerboard --sim`` runs. The node
 runs under the detector's name, so a secured site's sensor certificate is the one it
-uses.
+uses: stop the detector for the session (two nodes of one name would share one
+liveliness token and one stats key).
 
 Typical usage::
 

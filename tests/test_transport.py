@@ -95,6 +95,11 @@ def test_zenoh_config_translation() -> None:
     hub = build_zenoh_config(cfg, as_hub=True)
     assert '"tcp/127.0.0.1:17000"' in hub.get_json("listen/endpoints")
     assert "17000" not in hub.get_json("connect/endpoints")
+    # a peer told to listen on the hub (-l) is the hub: it does not connect to itself
+    on_hub = cfg.model_copy(update={"listen": ["tcp/127.0.0.1:17000"]})
+    assert "17000" not in build_zenoh_config(on_hub).get_json("connect/endpoints")
+    client = on_hub.model_copy(update={"mode": "client"})  # a client never listens
+    assert "17000" in build_zenoh_config(client).get_json("connect/endpoints")
 
 
 # -------------------------------------------------------------------- bus contract

@@ -507,7 +507,11 @@ def test_a_board_sessions_progress_reaches_clients_even_those_who_come_later(
     "bad",
     [b"[]", b"{not json", orjson.dumps({**PROGRESS, "views": {"k2_a": "3"}}),
      orjson.dumps({**PROGRESS, "seeing": "k2_a"}), orjson.dumps({**PROGRESS, "connected": 1}),
-     orjson.dumps({**PROGRESS, "coverage": {"k2_a": True}}), b" " * 70_000],
+     orjson.dumps({**PROGRESS, "coverage": {"k2_a": True}}), b" " * 70_000,
+     orjson.dumps({**PROGRESS, "views": {"k2_a": 1e300}}),
+     orjson.dumps({**PROGRESS, "views": {"k2_a": -1}}),
+     orjson.dumps({**PROGRESS, "coverage": {"k2_a": 1.5}}),
+     orjson.dumps({**PROGRESS, "stamp": True})],
 )  # fmt: skip
 def test_a_malformed_progress_is_refused(bad: bytes) -> None:
     with pytest.raises(ValueError):

@@ -30,6 +30,8 @@ PROGRESS_EVERY_S = 0.5
 """Report time between two progress updates."""
 SEEN_WITHIN_S = 0.25
 """A sensor sees the board now if it found it this recently."""
+MAX_VIEWS_PER_SENSOR = 500
+"""A session has tens of placements: more views from one sensor are a flood, dropped."""
 
 
 class ProgressDisplay(Protocol):
@@ -69,7 +71,8 @@ class BoardCollector:
         self.every_s = every_s
         self.board = board
         self.counts = {"reports": 0, "views": 0, "malformed": 0, "wrong_key": 0, "unknown": 0,
-                       "other_board": 0}  # fmt: skip
+                       "other_board": 0, "too_many_views": 0}  # fmt: skip
+        self._views_of: dict[str, int] = {}
         self.other_board: dict[str, tuple[int, int, float]] = {}
         self.reporting: set[str] = set()
         self._views: list[BoardObservation] = []
@@ -101,6 +104,12 @@ class BoardCollector:
                 self.counts["other_board"] += 1
                 self.other_board[report.sensor_id] = report.board  # type: ignore[assignment]
             report = replace(report, view=None)
+        if (
+            report.view is not None
+            and self._views_of.get(report.sensor_id, 0) >= MAX_VIEWS_PER_SENSOR
+        ):
+            self._count("too_many_views")
+            report = replace(report, view=None)
         with self._lock:
             self.counts["reports"] += 1
             sid = report.sensor_id
@@ -110,6 +119,7 @@ class BoardCollector:
             if report.view is not None:
                 self._views.append(report.view)
                 self.counts["views"] += 1
+                self._views_of[sid] = self._views_of.get(sid, 0) + 1
             if report.end:
                 self._ended.add(sid)
             now = report.stamp if now is None else now

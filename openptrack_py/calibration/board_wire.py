@@ -49,6 +49,10 @@ MAX_CORNERS = 1000
 """Most inner corners of a board (a 25 x 40 board is already unusually fine)."""
 MAX_PIXELS = 100_000
 """Largest image side, pixels."""
+MAX_VIEW_AGE_S = 60.0
+"""A view is of a still run that ended with the report's frame: stamped within this."""
+MAX_BOARD_DISTANCE_M = 100.0
+"""No depth sensor sees a board farther away."""
 _KEYS = frozenset(
     {"v", "kind", "sensor_id", "stamp", "corners", "view", "intrinsics", "board", "end"}
 )
@@ -147,9 +151,11 @@ def _read_points(obj: dict, key: str, path: str) -> np.ndarray:
     return np.asarray(items, dtype=float)
 
 
-def _read_view(obj: dict, sensor_id: str) -> BoardObservation:
+def _read_view(obj: dict, sensor_id: str, report_stamp: float) -> BoardObservation:
     check_keys(obj, _VIEW_KEYS, "view.")
-    stamp = read_float(obj, "stamp", "view.", 0.0, MAX_STAMP_S)
+    stamp = read_float(
+        obj, "stamp", "view.", report_stamp - MAX_VIEW_AGE_S, report_stamp + MAX_VIEW_AGE_S
+    )
     corners = _read_points(obj, "corners", "view.")
     values = read_list(obj, "camera_from_board", "view.", 16)
     if len(values) != 16 or any(type(c) not in (int, float) for c in values):
@@ -161,8 +167,9 @@ def _read_view(obj: dict, sensor_id: str) -> BoardObservation:
         or not np.allclose(pose[3], [0.0, 0.0, 0.0, 1.0])
         or not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6)
         or np.linalg.det(rotation) < 0
+        or np.linalg.norm(pose[:3, 3]) > MAX_BOARD_DISTANCE_M
     ):
-        raise fail("view.camera_from_board", "a rigid transform", values)
+        raise fail("view.camera_from_board", "a rigid transform, the board in reach", values)
     return BoardObservation(sensor_id, stamp, corners, pose)
 
 
@@ -205,10 +212,19 @@ def decode_board_report(payload: bytes | bytearray | memoryview | str) -> BoardR
     sensor_id = read_name(obj, "sensor_id", "")
     stamp = read_float(obj, "stamp", "", 0.0, MAX_STAMP_S)
     corners = _read_points(obj, "corners", "") if "corners" in obj else None
+    board = _read_board(obj) if "board" in obj else None
     view = None
     if "view" in obj:
-        view = _read_view(obj["view"], sensor_id)
+        if board is None:
+            raise WireFormatError("board: missing (a view must say which board it is of)")
+        view = _read_view(obj["view"], sensor_id, stamp)
     intrinsics = _read_intrinsics(obj["intrinsics"]) if "intrinsics" in obj else None
-    board = _read_board(obj) if "board" in obj else None
+    if board is not None:
+        corners_needed = board[0] * board[1]
+        for path, points in (("corners", corners), ("view.corners", view and view.corners)):
+            if points is not None and len(points) != corners_needed:
+                raise WireFormatError(
+                    f"{path}: {len(points)} corners, the board has {corners_needed}"
+                )
     end = read_bool(obj, "end", "", default=False)
     return BoardReport(sensor_id, stamp, corners, view, intrinsics, board, end)

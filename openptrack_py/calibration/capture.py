@@ -52,6 +52,10 @@ class StillBoardViews:
         Fewest frames of one still run.
     max_gap_s : float
         A longer gap between two frames ends a run.
+    hold_s : float
+        A run still this long gives its view at once (a live camera's last placement,
+        the board lying on the floor, never ends by moving); the rest of the run adds
+        nothing.
     """
 
     sensor_id: str
@@ -60,10 +64,13 @@ class StillBoardViews:
     still_px: float = 1.0
     min_frames: int = 3
     max_gap_s: float = 0.25
+    hold_s: float = 1.0
     frames: int = 0
     found: int = 0
     _run: list[tuple[float, BoardView]] = field(default_factory=list)
     _intrinsics: Intrinsics | None = None
+    _given: bool = False  # the current run's view was given already
+    _last_t: float = 0.0  # the current run's latest frame
 
     def add(self, frame: Frame) -> tuple[BoardObservation | None, BoardView | None]:
         """Take the next frame; return a view the frame completed (if any) and its own.
@@ -81,14 +88,19 @@ class StillBoardViews:
         self.found += 1
         if self._run and not self._continues(frame.stamp, view):
             done = self.flush()
+        self._last_t = frame.stamp
+        if self._given:  # still the same placement, already given
+            return done, view
         self._run.append((frame.stamp, view))
+        if done is None and frame.stamp - self._run[0][0] >= self.hold_s:
+            done = self._view_of(self._run)
+            self._given = done is not None
         return done, view
 
     def _continues(self, stamp: float, view: BoardView) -> bool:
         first = self._run[0][1]
-        last_stamp = self._run[-1][0]
         moved = float(np.abs(view.corners - first.corners).max())
-        return moved <= self.still_px and stamp - last_stamp <= self.max_gap_s
+        return moved <= self.still_px and stamp - self._last_t <= self.max_gap_s
 
     def report(self, frame: Frame) -> BoardReport:
         """Take the next frame; what the sensor says of it (see :meth:`add`)."""
@@ -119,8 +131,13 @@ class StillBoardViews:
         return self._intrinsics
 
     def flush(self) -> BoardObservation | None:
-        """End the current run: its view if it was long enough."""
+        """End the current run: its view if it was long enough (and not given yet)."""
         run, self._run = self._run, []
+        given, self._given = self._given, False
+        return None if given else self._view_of(run)
+
+    def _view_of(self, run: list[tuple[float, BoardView]]) -> BoardObservation | None:
+        """The view of a still run: corners averaged, stamped at the run's middle."""
         if len(run) < self.min_frames or self._intrinsics is None:
             return None
         view = average_views([v for _, v in run], self.board, self._intrinsics)

@@ -113,6 +113,8 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
         try:
             while time.monotonic() - start < args.live and not collector.finished:
                 time.sleep(0.1)
+        except KeyboardInterrupt:  # Ctrl-C: the session is over, solve what came
+            print("\ncheckerboard: stopped listening (Ctrl-C)", file=sys.stderr)
         finally:
             subscription.close()
         final = shown.inner.snapshot()
@@ -173,7 +175,8 @@ def solve(network: Any, args: argparse.Namespace, collector: Any) -> Any:
     unknown = [sid for sid, k in intrinsics.items() if k is None]
     if unknown:
         raise CalibrationError(
-            f"checkerboard: {', '.join(unknown)} gave no frames with intrinsics"
+            f"checkerboard: no still view of the board from {', '.join(unknown)} (hold the "
+            "board still for a second where each sensor sees it)"
         )
     floor_stamp, reference_pose = None, None
     if args.floor_board == "last":

@@ -129,7 +129,9 @@ def calibration_message(payload: bytes) -> bytes:
     if not isinstance(data, dict):
         raise ValueError("board progress: not an object")
     stamp = data.get("stamp")
-    if stamp is not None and not isinstance(stamp, (int, float)):
+    if stamp is not None and (
+        not isinstance(stamp, (int, float)) or isinstance(stamp, bool) or not 0 <= stamp <= 1e11
+    ):
         raise ValueError("board progress: stamp")
     seeing = data.get("seeing", [])
     connected = data.get("connected")
@@ -139,10 +141,13 @@ def calibration_message(payload: bytes) -> bytes:
         raise ValueError("board progress: connected")
     out: dict[str, Any] = {"type": "calibration", "stamp": stamp, "seeing": seeing,
                            "connected": connected}  # fmt: skip
-    for name, kind in (("views", int), ("pair_views", int), ("coverage", float)):
+    for name, kind, top in (("views", int, 1e9), ("pair_views", int, 1e9), ("coverage", float, 1)):
         table = data.get(name, {})
         if not isinstance(table, dict) or not all(
-            isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool)
+            isinstance(k, str)
+            and isinstance(v, (int, float))
+            and not isinstance(v, bool)
+            and 0 <= v <= top  # also refuses NaN
             for k, v in table.items()
         ):
             raise ValueError(f"board progress: {name}")

@@ -84,8 +84,8 @@ def build_zenoh_config(
     if cfg.hub is not None:
         if as_hub:
             listen_eps = [cfg.hub, *[e for e in listen_eps if e != cfg.hub]]
-        elif cfg.hub not in connect_eps and cfg.hub not in listen_eps:
-            connect_eps.append(cfg.hub)  # (a session listening on the hub is the hub)
+        elif cfg.hub not in connect_eps and (cfg.mode != "peer" or cfg.hub not in listen_eps):
+            connect_eps.append(cfg.hub)  # (a peer listening on the hub is the hub)
     entries = {
         "mode": json.dumps(cfg.mode),
         "listen/endpoints": json.dumps(listen_eps if cfg.mode == "peer" or as_hub else []),
@@ -188,7 +188,8 @@ def busy_listen_endpoint(
     says only ``ZError``). Returns ``(key, endpoint)`` or ``None``.
     """
     for key, endpoint in cfg.named_endpoints(listen, None):
-        listens = key.startswith("zenoh.listen") or (key == "zenoh.hub" and as_hub)
+        peer_listens = key.startswith("zenoh.listen") and cfg.mode == "peer"
+        listens = peer_listens or (key == "zenoh.hub" and as_hub)
         protocol, _, address = endpoint.partition("/")
         if not listens or protocol != "tcp":
             continue
@@ -196,6 +197,7 @@ def busy_listen_endpoint(
         try:
             family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
             with socket.socket(family, socket.SOCK_STREAM) as probe:
+                probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # TIME_WAIT is free
                 probe.bind((host.strip("[]"), int(port)))
         except OSError as exc:
             if exc.errno == errno.EADDRINUSE:

@@ -18,7 +18,8 @@ from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.errors import WireFormatError
 
 K = Intrinsics(width=512, height=424, fx=365.0, fy=365.0, cx=256.0, cy=212.0)
-CORNERS = np.array([[100.5, 200.25], [120.0, 200.0], [140.0, 201.0]])
+CORNERS = np.array([[100.5 + 20 * j, 200.25 + 20 * i] for i in range(5) for j in range(6)])
+"""A 5 x 6 board's inner corners (the default board)."""
 
 
 def _pose(yaw: float = 0.3) -> np.ndarray:
@@ -50,7 +51,7 @@ def test_every_field_round_trips() -> None:
 
 
 def _wire(**fields: object) -> bytes:
-    obj = orjson.loads(encode_board_report(_report(corners=CORNERS)))
+    obj = orjson.loads(encode_board_report(_report(corners=CORNERS, board=(5, 6, 0.12))))
     obj.update(fields)
     return orjson.dumps(obj)
 
@@ -68,6 +69,27 @@ def _wire(**fields: object) -> bytes:
         ({"board": [5, 6]}, "board"),
         ({"board": [5, 6, -0.1]}, "board"),
         ({"board": [5.0, 6, 0.1]}, "board"),
+        ({"board": [4, 5, 0.1]}, "corners"),  # 30 corners, the board has 20
+        (
+            {
+                "view": {
+                    "stamp": 100.0,
+                    "corners": [[1.0, 2.0]],
+                    "camera_from_board": np.eye(4).ravel().tolist(),
+                }
+            },
+            "view.corners",
+        ),
+        (
+            {
+                "view": {
+                    "stamp": 1e9,
+                    "corners": [[1.0, 2.0]],
+                    "camera_from_board": np.eye(4).ravel().tolist(),
+                }
+            },
+            "view.stamp",
+        ),
         ({"extra": 1}, "extra"),
         (
             {
@@ -85,7 +107,7 @@ def _wire(**fields: object) -> bytes:
         (
             {
                 "view": {
-                    "stamp": 1.0,
+                    "stamp": 100.0,
                     "corners": [[1.0, 2.0]],
                     "camera_from_board": [2.0] + [0.0] * 15,
                 }
@@ -93,7 +115,7 @@ def _wire(**fields: object) -> bytes:
             "view.camera_from_board",
         ),
         (
-            {"view": {"stamp": 1.0, "corners": [[1.0, 2.0]], "camera_from_board": [1.0] * 4}},
+            {"view": {"stamp": 100.0, "corners": [[1.0, 2.0]], "camera_from_board": [1.0] * 4}},
             "view.camera_from_board",
         ),
     ],
@@ -101,6 +123,15 @@ def _wire(**fields: object) -> bytes:
 def test_a_wrong_field_is_named(fields: dict, named: str) -> None:
     with pytest.raises(WireFormatError, match=named.replace("[", r"\[").replace("]", r"\]")):
         decode_board_report(_wire(**fields))
+
+
+def test_a_view_must_say_which_board_it_is_of() -> None:
+    obj = orjson.loads(_wire())
+    del obj["board"]
+    obj["view"] = {"stamp": 100.0, "corners": CORNERS.tolist(),
+                   "camera_from_board": np.eye(4).ravel().tolist()}  # fmt: skip
+    with pytest.raises(WireFormatError, match="board: missing"):
+        decode_board_report(orjson.dumps(obj))
 
 
 def test_a_bad_number_never_reaches_the_wire() -> None:
@@ -150,6 +181,17 @@ def test_a_view_of_another_board_is_dropped_and_its_sensor_named() -> None:
     assert collector.reporting == {"k2_a", "k2_b"}
 
 
+def test_a_flood_of_views_from_one_sensor_is_capped() -> None:
+    from openptrack_py.calibration.board_collector import MAX_VIEWS_PER_SENSOR
+
+    collector = BoardCollector(["k2_a"])
+    for i in range(MAX_VIEWS_PER_SENSOR + 10):
+        view = BoardObservation("k2_a", float(i), CORNERS, _pose())
+        collector.add(_report("k2_a", float(i), view=view, intrinsics=K))
+    assert len(collector.views) == MAX_VIEWS_PER_SENSOR
+    assert collector.counts["too_many_views"] == 10
+
+
 def test_collector_drops_and_counts_what_it_cannot_trust() -> None:
     progress = CalibrationProgress({"k2_a": (512, 424)})
     collector = BoardCollector(["k2_a"], progress)
@@ -159,5 +201,40 @@ def test_collector_drops_and_counts_what_it_cannot_trust() -> None:
     collector.take("opt/default/board/zz", encode_board_report(_report("zz")))  # unknown
     collector.take("opt/default/board/k2_a", good)
     assert collector.counts == {"reports": 1, "views": 0, "malformed": 1, "wrong_key": 1,
-                                "unknown": 1, "other_board": 0}  # fmt: skip
+                                "unknown": 1, "other_board": 0, "too_many_views": 0}  # fmt: skip
     assert progress.snapshot().seeing == ("k2_a",) and progress.snapshot().views == {"k2_a": 0}
+
+
+def _still_views(monkeypatch: pytest.MonkeyPatch, positions: list[float | None]) -> list:
+    """Feed ``StillBoardViews`` 30 Hz frames whose board sits at ``positions`` (pixels
+    along u; None: not seen); the views it gives, in order."""
+    from types import SimpleNamespace
+
+    import openptrack_py.calibration.capture as capture
+    from openptrack_py.calibration.checkerboard import BoardView, Checkerboard
+
+    monkeypatch.setattr(
+        capture, "detect_board",
+        lambda frame, board, kind: None if frame.u is None
+        else BoardView(CORNERS + np.array([frame.u, 0.0]), _pose(), 0.1),
+    )  # fmt: skip
+    monkeypatch.setattr(capture, "average_views", lambda views, board, k: views[0])
+    still = capture.StillBoardViews("k2_a", "kinect2", Checkerboard())
+    reports = [
+        still.report(SimpleNamespace(stamp=i / 30, intrinsics=K, u=u))
+        for i, u in enumerate(positions)
+    ]
+    reports.append(still.end_report(len(positions) / 30))
+    return [(round(r.stamp * 30), r.view) for r in reports if r.view is not None]
+
+
+def test_a_board_left_still_is_given_once_without_waiting_for_it_to_move(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # held still 3 s (a live camera's last placement never ends by moving), then moved
+    views = _still_views(monkeypatch, [10.0] * 90 + [50.0] * 5)
+    assert [frame for frame, _ in views] == [30, 95]  # after 1 s; the short run at the end
+    assert views[0][1].corners[0, 0] == pytest.approx(CORNERS[0, 0] + 10.0)
+    # short still runs (a few frames each) are given when the board moves or is lost
+    views = _still_views(monkeypatch, [10.0] * 5 + [20.0] * 2 + [None] + [30.0] * 4)
+    assert [frame for frame, _ in views] == [5, 12]  # the 2-frame run is too short
