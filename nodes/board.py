@@ -30,7 +30,7 @@ from collections.abc import Sequence
 from openptrack_py.calibration.board_wire import encode_board_report
 from openptrack_py.calibration.capture import StillBoardViews
 from openptrack_py.calibration.checkerboard import Checkerboard
-from openptrack_py.config import NetworkConfig
+from openptrack_py.config import NetworkConfig, SensorConfig
 from openptrack_py.detection.service import source_for_sensor
 from openptrack_py.errors import ConfigError, SourceError
 from openptrack_py.eval.board_stream import SimBoardSource
@@ -42,12 +42,13 @@ def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     """Report the board until the source ends or the node is stopped."""
     sensor = cfg.sensor(args.sensor)
     board = Checkerboard.parse(args.board)
+
+    def rendered(network: NetworkConfig, simulated: SensorConfig) -> SimBoardSource:
+        return SimBoardSource(network, simulated.id, board, seed=args.seed,
+                              placements=args.placements, speed=args.speed)  # fmt: skip
+
     try:
-        if sensor.source == "sim" and args.input is None:
-            source = SimBoardSource(cfg, sensor.id, board, seed=args.seed,
-                                    placements=args.placements, speed=args.speed)  # fmt: skip
-        else:
-            source = source_for_sensor(cfg, sensor, args.input)
+        source = source_for_sensor(cfg, sensor, args.input, rendered)
     except SourceError as exc:
         raise ConfigError(f"sensors.{sensor.id}: {exc}") from None
     views = StillBoardViews(sensor.id, sensor.type, board)

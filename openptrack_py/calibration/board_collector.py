@@ -74,7 +74,6 @@ class BoardCollector:
                        "other_board": 0, "too_many_views": 0}  # fmt: skip
         self._views_of: dict[str, int] = {}
         self.other_board: dict[str, tuple[int, int, float]] = {}
-        self.reporting: set[str] = set()
         self._views: list[BoardObservation] = []
         self._intrinsics: dict[str, Intrinsics] = {}
         self._latest: dict[str, tuple[float, bool]] = {}
@@ -113,7 +112,6 @@ class BoardCollector:
         with self._lock:
             self.counts["reports"] += 1
             sid = report.sensor_id
-            self.reporting.add(sid)
             if report.intrinsics is not None:
                 self._intrinsics[sid] = report.intrinsics
             if report.view is not None:
@@ -149,6 +147,12 @@ class BoardCollector:
             if latest is not None and latest[1] and abs(now - latest[0]) <= SEEN_WITHIN_S:
                 out.append(sid)
         return out
+
+    @property
+    def reporting(self) -> set[str]:
+        """The sensors that sent a report so far."""
+        with self._lock:
+            return set(self._latest)
 
     @property
     def views(self) -> list[BoardObservation]:

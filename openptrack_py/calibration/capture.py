@@ -111,19 +111,15 @@ class StillBoardViews:
             corners=None if view is None else view.corners,
             view=done,
             intrinsics=None if done is None else self._intrinsics,
-            board=None if done is None else self._board_spec,
+            board=None if done is None else self.board.spec,
         )
 
     def end_report(self, stamp: float) -> BoardReport:
         """The last report, once the frames ran out: the run in progress, if long enough."""
         return BoardReport(
             self.sensor_id, stamp, view=self.flush(), intrinsics=self._intrinsics,
-            board=self._board_spec, end=True,
+            board=self.board.spec, end=True,
         )  # fmt: skip
-
-    @property
-    def _board_spec(self) -> tuple[int, int, float]:
-        return self.board.rows, self.board.cols, self.board.square_m
 
     @property
     def intrinsics(self) -> Intrinsics | None:

@@ -112,6 +112,11 @@ class Checkerboard:
         return cls(rows=rows, cols=cols, square_m=square)
 
     @property
+    def spec(self) -> tuple[int, int, float]:
+        """``(rows, cols, square_m)``: what a board report says of the board."""
+        return self.rows, self.cols, self.square_m
+
+    @property
     def corner_count(self) -> int:
         """Number of inner corners."""
         return self.rows * self.cols

@@ -13,7 +13,7 @@ unsynchronised sensors (a live or recorded session) through
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from itertools import combinations
 
@@ -112,12 +112,7 @@ class CalibrationProgress:
         CalibrationError
             For a sensor not given at construction.
         """
-        unknown = [s for s in detections if s not in self._sizes]
-        if unknown:
-            raise CalibrationError(
-                f"calibration progress: unknown sensor {unknown[0]!r} "
-                f"(sensors: {', '.join(self._sizes)})"
-            )
+        self._check_known(detections)
         seeing = tuple(s for s in self._sizes if detections.get(s) is not None)
         with self._lock:
             self._stamp = stamp
@@ -143,15 +138,11 @@ class CalibrationProgress:
         CalibrationError
             For a sensor not given at construction.
         """
-        unknown = [s for s in (*seeing, *(v.sensor_id for v in views)) if s not in self._sizes]
-        if unknown:
-            raise CalibrationError(
-                f"calibration progress: unknown sensor {unknown[0]!r} "
-                f"(sensors: {', '.join(self._sizes)})"
-            )
+        self._check_known([*seeing, *(v.sensor_id for v in views)])
+        now = set(seeing)
         with self._lock:
             self._stamp = stamp
-            self._seeing = tuple(s for s in self._sizes if s in set(seeing))
+            self._seeing = tuple(s for s in self._sizes if s in now)
             for view in views:
                 sid = view.sensor_id
                 self._views[sid] += 1
@@ -166,6 +157,14 @@ class CalibrationProgress:
                     self._pairs[pair] = self._pairs.get(pair, 0) + 1
                 self._view_stamps.append((sid, view.stamp))
         return self.snapshot()
+
+    def _check_known(self, sensors: Iterable[str]) -> None:
+        unknown = [s for s in sensors if s not in self._sizes]
+        if unknown:
+            raise CalibrationError(
+                f"calibration progress: unknown sensor {unknown[0]!r} "
+                f"(sensors: {', '.join(self._sizes)})"
+            )
 
     def _mark(self, sensor: str, corners: np.ndarray) -> None:
         """Mark the image cells where corners were seen."""

@@ -34,7 +34,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from openptrack_py.cli.common import EXIT_CONFIG, print_rows
+from openptrack_py.cli.common import EXIT_CONFIG, ProgressLine, pose_cells, print_rows
 from openptrack_py.runtime.args import add_zenoh_arguments
 
 if TYPE_CHECKING:
@@ -247,7 +247,7 @@ class _TerminalProgress:
 
     def __init__(self, inner: Any) -> None:
         self.inner = inner
-        self._tty = sys.stderr.isatty()
+        self.line = ProgressLine(every_s=0.0)
 
     def update(self, stamp: float, found: dict) -> Any:
         return self._show(self.inner.update(stamp, found))
@@ -255,13 +255,14 @@ class _TerminalProgress:
     def observe(self, stamp: float, seeing: Any, views: Any) -> Any:
         return self._show(self.inner.observe(stamp, seeing, views))
 
+    def done(self) -> None:
+        self.line.done()
+
     def _show(self, snap: Any) -> Any:
         seeing = ",".join(sorted(snap.seeing)) or "-"
         pairs = " ".join(f"{a}+{b}:{n}" for (a, b), n in sorted(snap.pair_views.items()))
         cover = " ".join(f"{s}:{c:.0%}" for s, c in sorted(snap.coverage.items()))
-        line = f"board seen by {seeing} | pairs {pairs} | coverage {cover}"
-        print(("\r" if self._tty else "") + line[:200], end="" if self._tty else "\n",
-              file=sys.stderr, flush=True)  # fmt: skip
+        self.line.show(f"board seen by {seeing} | pairs {pairs} | coverage {cover}"[:200])
         return snap
 
     def __getattr__(self, name: str) -> Any:
@@ -279,12 +280,7 @@ def _entry_row(sensor_id: str, entry: SensorCalibration) -> dict[str, Any]:
     pose = entry.as_pose()
     return {
         "sensor": sensor_id,
-        "x": round(pose.x, 4),
-        "y": round(pose.y, 4),
-        "z": round(pose.z, 4),
-        "yaw_deg": round(pose.yaw_deg, 3),
-        "pitch_deg": round(pose.pitch_deg, 3),
-        "roll_deg": round(pose.roll_deg, 3),
+        **pose_cells(pose),
         "clock_offset_s": entry.clock_offset_s,
         "method": entry.method,
         "date": entry.date.isoformat() if entry.date else "",

@@ -61,7 +61,8 @@ def from_recordings(network: Any, args: argparse.Namespace, progress_view: Calla
     if missing:
         raise CalibrationError(f"checkerboard: no recording for sensor {', '.join(missing)}")
     types = {s.id: s.type for s in network.sensors}
-    collector = BoardCollector(folders, progress_view(_progress(network)))
+    progress = progress_view(_progress(network))
+    collector = BoardCollector(folders, progress)
     views = {sid: StillBoardViews(sid, types[sid], board) for sid in folders}
     sources = {sid: open_source(str(path)) for sid, path in folders.items()}
     last = 0.0
@@ -74,9 +75,8 @@ def from_recordings(network: Any, args: argparse.Namespace, progress_view: Calla
             source.close()
     for still in views.values():
         collector.add(still.end_report(last))
-    if sys.stderr.isatty():
-        print(file=sys.stderr)  # end the progress line
-    return solve(network, args, collector)
+    progress.done()  # end the progress line
+    return solve(network, args, board, collector)
 
 
 def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -> Any:
@@ -103,9 +103,7 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
             publisher.put(orjson.dumps({**snapshot.to_dict(), "site": network.site}))
 
         shown = _Announced(progress_view(_progress(network)), publish)
-        collector = BoardCollector(
-            [s.id for s in network.sensors], shown, board=(board.rows, board.cols, board.square_m)
-        )
+        collector = BoardCollector([s.id for s in network.sensors], shown, board=board.spec)
         subscription = bus.subscribe(
             keys.board("*"), lambda s: collector.take(s.key, s.payload, time.monotonic())
         )
@@ -119,8 +117,7 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
             subscription.close()
         final = shown.inner.snapshot()
         publish(final)
-    if sys.stderr.isatty():
-        print(file=sys.stderr)
+    shown.inner.done()
     dropped = {k: n for k, n in collector.counts.items() if k not in ("reports", "views") and n}
     if dropped:
         text = ", ".join(f"{n} {k}" for k, n in dropped.items())
@@ -139,7 +136,7 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
             f"checkerboard: no report from {', '.join(silent)} in {args.live:g} s (is "
             "'openptrack node board' running on each sensor's machine, reaching this one?)"
         )
-    return solve(network, args, collector)
+    return solve(network, args, board, collector)
 
 
 class _Announced:
@@ -164,12 +161,11 @@ def _progress(network: Any) -> Any:
     )
 
 
-def solve(network: Any, args: argparse.Namespace, collector: Any) -> Any:
-    """Every pose from a session's views (``--floor-board`` sets the world)."""
+def solve(network: Any, args: argparse.Namespace, board: Any, collector: Any) -> Any:
+    """Every pose from a session's views of ``board`` (``--floor-board`` sets the world)."""
     from openptrack_py.calibration.extrinsics import calibrate_extrinsics
     from openptrack_py.calibration.files import believed_poses
 
-    board = board_from_arg(args.board)
     observations = collector.views
     intrinsics = collector.intrinsics
     unknown = [sid for sid, k in intrinsics.items() if k is None]
@@ -214,6 +210,8 @@ def _in_time_order(sources: dict[str, Any]) -> Iterator[tuple[float, str, Any]]:
 
 def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:
     """Per sensor: views, reprojection RMS and the pose found."""
+    from openptrack_py.cli.common import pose_cells
+
     report = calibration.report
     out = []
     for sid, pose in calibration.poses().items():
@@ -222,12 +220,7 @@ def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:
                 "sensor": sid,
                 "views": report.views[sid],
                 "rms_px": round(report.rms_px[sid], 3),
-                "x": round(pose.x, 4),
-                "y": round(pose.y, 4),
-                "z": round(pose.z, 4),
-                "yaw_deg": round(pose.yaw_deg, 3),
-                "pitch_deg": round(pose.pitch_deg, 3),
-                "roll_deg": round(pose.roll_deg, 3),
+                **pose_cells(pose),
             }
         )
     columns = ["sensor", "views", "rms_px", "x", "y", "z", "yaw_deg", "pitch_deg", "roll_deg"]

@@ -163,6 +163,7 @@ def _listen(network: Any, args: argparse.Namespace) -> list:
     """Every detection batch the network publishes for ``--live`` seconds, with progress."""
     import time
 
+    from openptrack_py.cli.common import ProgressLine
     from openptrack_py.messages.codec import decode_detection_batch
     from openptrack_py.runtime.args import bus_from_args
     from openptrack_py.transport.keys import SiteKeys
@@ -181,18 +182,15 @@ def _listen(network: Any, args: argparse.Namespace) -> list:
         batches.append(batch)
         seen[batch.sensor_id] = seen.get(batch.sensor_id, 0) + len(batch.detections)
 
-    tty = sys.stderr.isatty()
+    line = ProgressLine(every_s=0.0)
     with bus_from_args(network, args) as bus:
         bus.subscribe(SiteKeys(network.site).detections("*"), on_batch)
         start = time.monotonic()
         while (left := args.live - (time.monotonic() - start)) > 0:
             time.sleep(min(1.0, left))
             counts = " ".join(f"{sid}:{n}" for sid, n in sorted(seen.items()))
-            line = f"walk: {max(left - 1.0, 0.0):.0f} s left | detections {counts}"
-            print(("\r" if tty else "") + line[:200], end="" if tty else "\n",
-                  file=sys.stderr, flush=True)  # fmt: skip
-    if tty:
-        print(file=sys.stderr)
+            line.show(f"walk: {max(left - 1.0, 0.0):.0f} s left | detections {counts}"[:200])
+    line.done()
     if malformed:
         print(f"walk: {malformed} malformed batches dropped", file=sys.stderr)
     return list(batches)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from openptrack_py.errors import ConfigError
 from openptrack_py.runtime.logs import LOG_LEVELS, configure_logging
@@ -34,6 +34,18 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
 def start_logging(args: argparse.Namespace) -> None:
     """Send the command's own logs to stderr as its ``--log-level``/``--log-format`` ask."""
     configure_logging("openptrack", args.log_level, args.log_format)
+
+
+def pose_cells(pose: Any) -> dict[str, float]:
+    """A pose's table cells: position in metres to 0.1 mm, angles in degrees to 0.001."""
+    return {
+        "x": round(pose.x, 4),
+        "y": round(pose.y, 4),
+        "z": round(pose.z, 4),
+        "yaw_deg": round(pose.yaw_deg, 3),
+        "pitch_deg": round(pose.pitch_deg, 3),
+        "roll_deg": round(pose.roll_deg, 3),
+    }
 
 
 def print_rows(rows: list[dict], columns: list[str], fmt: str) -> None:

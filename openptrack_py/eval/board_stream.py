@@ -92,13 +92,13 @@ class SimBoardSource:
         sensors, room, self.session = sim_board_session(
             network, board, seed=seed, placements=placements
         )
-        rigs = {r.sensor.id: r for r in sensor_rigs(sensors, room, seed + 1)}
-        if sensor_id not in rigs:
+        rigs = sensor_rigs(sensors, room, seed + 1, only=sensor_id)
+        if not rigs:
             raise ConfigError(
                 f"--sensor: {sensor_id!r} is not a simulated sensor with a pose "
-                f"(those: {', '.join(rigs)})"
+                f"(those: {', '.join(s.id for s in sensors)})"
             )
-        self.rig = rigs[sensor_id]
+        self.rig = rigs[0]
         self.name = f"simulated board session (seed {seed}, {placements} placements)"
         self.intrinsics = self.rig.renderer.intrinsics
         self.speed = speed

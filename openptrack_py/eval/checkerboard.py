@@ -234,11 +234,19 @@ class SensorRig:
     phase: float  # capture delay after each placement's stamp (sensors are not in sync)
 
 
-def sensor_rigs(sensors: Sequence[SimSensor], room: Room, seed: int) -> list[SensorRig]:
-    """Each sensor's renderers, noise source and capture phase, seeded from ``seed``."""
+def sensor_rigs(
+    sensors: Sequence[SimSensor], room: Room, seed: int, only: str | None = None
+) -> list[SensorRig]:
+    """Each sensor's renderers, noise source and capture phase, seeded from ``seed``.
+
+    With ``only``, that sensor's rig alone (the same as among all of them: each sensor
+    has its own spawned seed).
+    """
     seeds = np.random.SeedSequence(seed).spawn(len(sensors))
     rigs = []
     for sensor, ss in zip(sensors, seeds, strict=True):
+        if only is not None and sensor.id != only:
+            continue
         spec = sensor.spec()
         rng = np.random.default_rng(ss)
         rigs.append(
