@@ -125,7 +125,6 @@ def main(argv: list[str] | None = None) -> int:
             "analyze": analyze,
             "replay_x200": replay,
         }
-    text = json.dumps({k: v for k, v in figures.items()}, default=str)
     if args.out is not None:
         args.out.write_text(json.dumps(figures, indent=1) + "\n")
     summary = {
@@ -133,7 +132,6 @@ def main(argv: list[str] | None = None) -> int:
         for k, v in figures.items()
     }
     print(json.dumps(summary))
-    del text
     return 0
 
 

@@ -104,8 +104,7 @@ class Recorder:
             out.write(item.received, item.key, item.message)
             self.lines += 1
             self.node.counters.inc("out")
-        if items:
-            out.flush()  # what was received is in the file before the next wait
+        out.flush_if_due()  # in the file within flush_every_s, also when traffic stops
 
     def run(self) -> None:
         """Write until the node stops, then write what is still queued."""

@@ -27,6 +27,7 @@ from openptrack_py.messages.codec import (
     encode_track_batch,
 )
 from openptrack_py.recordings import RecordedMessage, read_recording
+from openptrack_py.recordings.files import MCAP_SUFFIX
 from openptrack_py.runtime.node import Node
 
 __all__ = ["DEFAULT_TOPICS", "ReplayProgress", "Replayer", "restamped"]
@@ -80,7 +81,7 @@ def restamped(message: RecordedMessage, clock: Callable[[float], float]) -> byte
 
 def recording_span(path: Path) -> tuple[float, float] | None:
     """``(first, last)`` receive time of an MCAP recording, from its statistics."""
-    if path.suffix != ".mcap":
+    if path.suffix != MCAP_SUFFIX:
         return None
     try:
         from mcap.reader import make_reader
@@ -140,7 +141,7 @@ class Replayer:
         self._publishers: dict[str, object] = {}
 
     def _put(self, message: RecordedMessage, clock: Callable[[float], float]) -> None:
-        key = f"opt/{self.node.keys.site}/{message.topic}"
+        key = self.node.keys.relative(message.topic)
         publisher = self._publishers.get(key)
         if publisher is None:
             publisher = self._publishers[key] = self.node.publisher(key)
@@ -170,16 +171,14 @@ class Replayer:
                 last = message.received
                 if message.topic.split("/")[0] not in self.topics:
                     continue
-                recorded_s = message.received - first
-                due = start_wall + (lap_offset + recorded_s) / self.speed
-                wait = due - time.time()
+                wait = clock(message.received) - time.time()
                 if wait > 0 and self.node.wait(wait):
                     return put
-                self._put(message, clock)
+                self._put(message, clock)  # counted as "out" by the node's publisher
                 put += 1
-                self.node.counters.inc("out")
                 if self.on_progress is not None and time.monotonic() - shown >= 0.5:
                     shown = time.monotonic()
+                    recorded_s = message.received - first
                     self.on_progress(ReplayProgress(recorded_s, total, put, lap))
             self.stopped = recording.stopped
             if not self.loop or first is None or last is None:

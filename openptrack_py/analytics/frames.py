@@ -77,7 +77,7 @@ def frames_from_recording(
                 positions = {}
                 names = {}
                 for track in batch.tracks:
-                    key = track.id if track.stable_id is None else track.stable_id
+                    key = track.client_id
                     positions[key] = (track.x, track.y)
                     if track.identity:
                         names[key] = track.identity

@@ -41,6 +41,7 @@ def add_parser(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Replay; status 2 for a missing file or bad option, 0 otherwise."""
+    from openptrack_py.recordings import SCHEMAS
     from openptrack_py.replayer import Replayer, ReplayProgress
     from openptrack_py.runtime.node import Node
 
@@ -49,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"openptrack replay: no file {args.file}", file=sys.stderr)
         return EXIT_CONFIG
     topics = [t.strip() for t in args.topics.split(",") if t.strip()]
-    allowed = {"detections", "tracks", "ground_truth", "stats", "heartbeat", "calibration"}
+    allowed = set(SCHEMAS) - {"config"}  # every recorded topic but configuration requests
     unknown = sorted(set(topics) - allowed)
     if unknown or not topics or not args.speed > 0:
         print(

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
             return EXIT_CONFIG
         finally:
             progress.done()
-        scores = _scores(args.file, scored)
+        scores = _scores(args.file, scored) if result.truth_frames else {}
     row = {
         "file": args.file.name,
         "mode": result.mode,
@@ -93,16 +93,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _scores(recording: Path, output: Path) -> dict[str, float]:
-    """MOTA and IDF1 of the recorded and the new tracks, when there is ground truth."""
+    """MOTA and IDF1 of the recorded and the new tracks (the recording has ground truth)."""
     from openptrack_py.eval.trackers import run_file_eval
-    from openptrack_py.recordings import read_recording
 
-    if not any(m.topic == "ground_truth" for m in read_recording(recording)):
-        return {}
     out: dict[str, float] = {}
     for prefix, path in (("recorded_", recording), ("", output)):
-        if path is None:
-            continue
         try:
             metrics = run_file_eval(recording, tracks=path).metrics
         except Exception as exc:  # a recording without tracks is scored as nothing

@@ -16,10 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from openptrack_py.analytics.analysis import Analysis, analyze
 from openptrack_py.analytics.frames import PeopleFrame
+from openptrack_py.eval.matching import max_matching_min_cost
 from openptrack_py.eval.runner import EvalResult, Hypotheses, evaluate
 from openptrack_py.eval.trackers import tracking_feed
 from openptrack_py.messages.ground_truth import GroundTruthFrame
@@ -60,10 +60,9 @@ def tracked_and_true_frames(
         if hyp is not None and len(hyp.ids) and people:
             xy = np.array([(p.x, p.y) for p in people])
             dist = np.hypot(*(xy[:, None, :] - hyp.xy[None, :, :]).transpose(2, 0, 1))
-            rows, cols = linear_sum_assignment(np.where(dist <= max_distance_m, dist, 1e6))
+            rows, cols = max_matching_min_cost(np.where(dist <= max_distance_m, dist, np.inf))
             for r, c in zip(rows, cols, strict=True):
-                if dist[r, c] <= max_distance_m:
-                    matched[people[r].id] = (float(hyp.xy[c, 0]), float(hyp.xy[c, 1]))
+                matched[people[r].id] = (float(hyp.xy[c, 0]), float(hyp.xy[c, 1]))
         tracked.append(PeopleFrame(t, matched))
         truth.append(PeopleFrame(t, {p.id: (p.x, p.y) for p in people if p.id in matched}))
 

@@ -30,6 +30,7 @@ import orjson
 from openptrack_py.errors import ConfigError, WireFormatError
 from openptrack_py.messages.fields import MAX_NAME_LEN, NAME_RE
 from openptrack_py.recordings import read_recording
+from openptrack_py.recordings.files import MCAP_SUFFIX
 
 TIME_BASE_S = 1.0e9
 """Added to every file time, so that times from any origin are valid UNIX stamps."""
@@ -166,8 +167,8 @@ class Row:
 
 def _suffix(path: Path) -> str:
     suffix = path.suffix.lower()
-    if suffix not in CSV_SUFFIXES + JSON_LINES_SUFFIXES + (".mcap",):
-        allowed = ", ".join(CSV_SUFFIXES + JSON_LINES_SUFFIXES + (".mcap",))
+    if suffix not in CSV_SUFFIXES + JSON_LINES_SUFFIXES + (MCAP_SUFFIX,):
+        allowed = ", ".join(CSV_SUFFIXES + JSON_LINES_SUFFIXES + (MCAP_SUFFIX,))
         raise ExternalFileError(
             path, None, None, f"unknown format {suffix!r} (allowed: {allowed})"
         )
@@ -245,7 +246,7 @@ def read_records(path: Path, columns: tuple[str, ...], required: tuple[str, ...]
     """The records of a file: rows (CSV or JSON lines) or a recording (MCAP or lines)."""
     if _suffix(path) in CSV_SUFFIXES:
         return Records(rows=_csv_rows(path, columns, required))
-    if _suffix(path) == ".mcap":
+    if _suffix(path) == MCAP_SUFFIX:
         return Records(recording=_mcap_recording(path))
     lines = _json_lines(path)
     first = next(lines, None)

@@ -65,6 +65,8 @@ class RetrackResult:
         Where reading stopped early (a damaged recording), if it did.
     output : Path or None
         The recording written.
+    truth_frames : int
+        Ground-truth frames the recording holds (copied to the output).
     """
 
     mode: str
@@ -74,6 +76,7 @@ class RetrackResult:
     first_step: int | None = None
     stopped: str | None = None
     output: Path | None = None
+    truth_frames: int = 0
 
 
 def recorded_tracker_config(path: Path, overrides: list[str] | None = None) -> TrackerConfig:
@@ -149,6 +152,8 @@ def retrack(
             if isinstance(out, TrackBatch):
                 result.steps += 1
                 out = encode_track_batch(out)
+            else:  # the recorded ground truth, passed through
+                result.truth_frames += 1
             if writer is not None:
                 writer.write(received, key, out)
             if on_progress is not None:

@@ -33,7 +33,7 @@ from scipy.optimize import linear_sum_assignment
 from openptrack_py.eval.metrics import MotAccumulator, MotMetrics
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.ground_truth import GroundTruthFrame
-from openptrack_py.messages.track import Track, TrackBatch
+from openptrack_py.messages.track import TrackBatch
 from openptrack_py.sim.scenarios import Scenario
 from openptrack_py.sim.simulator import SensorFrame, Simulator, TruthFrame
 
@@ -99,14 +99,6 @@ class Pipeline(Protocol):
         """Steps with every batch still held."""
 
 
-def client_id(track: Track) -> int:
-    """The identity a client keys on: ``stable_id`` when the tracker gives one, else ``id``.
-
-    A re-identifying tracker is judged by the identity it publishes as stable.
-    """
-    return track.id if track.stable_id is None else track.stable_id
-
-
 @dataclass
 class TrackerFeed:
     """Feeds sensor batches to a tracking pipeline and reports its extrapolated output.
@@ -166,7 +158,7 @@ class TrackerFeed:
             return None
         dt = t - self._latest_true_time
         tracks = self._latest.tracks
-        ids = np.array([client_id(tr) for tr in tracks], dtype=np.int64)
+        ids = np.array([tr.client_id for tr in tracks], dtype=np.int64)
         xy = np.array([(tr.x + tr.vx * dt, tr.y + tr.vy * dt) for tr in tracks]).reshape(-1, 2)
         return Hypotheses(ids, xy)
 

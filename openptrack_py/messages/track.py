@@ -56,6 +56,14 @@ class Track:
     stable_id: int | None = None
     identity: str | None = None
 
+    @property
+    def client_id(self) -> int:
+        """The identity a client keys on: ``stable_id`` when given, else ``id``.
+
+        A re-identifying tracker is judged by the identity it publishes as stable.
+        """
+        return self.id if self.stable_id is None else self.stable_id
+
 
 @dataclass(frozen=True, slots=True)
 class TrackBatch:

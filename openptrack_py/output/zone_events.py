@@ -134,8 +134,8 @@ class ZoneEventSink:
             data = _osc(f"{self.cfg.prefix}/zone/{event}", args)
         self._send(data)
 
-    def _counts(self, stamp: float) -> None:
-        counts = self.tracker.counts()
+    def _counts(self, stamp: float, counts: dict[str, int] | None = None) -> None:
+        counts = self.tracker.counts() if counts is None else counts
         self._seq += 1
         if self.cfg.format == "json":
             self._send(encode_zone_counts(self._seq, stamp, counts))
@@ -147,7 +147,7 @@ class ZoneEventSink:
         """Take one tracks frame: an event per change, then the counts if any changed."""
         positions = {}
         for t in frame.tracks:
-            key = t.id if t.stable_id is None else t.stable_id
+            key = t.client_id
             positions[key] = (t.x, t.y)
             if t.identity:
                 self._names[key] = t.identity
@@ -159,7 +159,7 @@ class ZoneEventSink:
         for person, zone in entered:
             self._event(frame.stamp, zone, "enter", person, counts[zone])
         if entered or left:
-            self._counts(frame.stamp)
+            self._counts(frame.stamp, counts)
             self._next_counts = now + self.cfg.counts_every_s
         present = set(positions) | set(self.tracker.current)
         self._names = {k: v for k, v in self._names.items() if k in present}

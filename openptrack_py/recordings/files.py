@@ -91,6 +91,9 @@ class RecordingWriter(Protocol):
     def flush(self) -> None:
         """Put what was written so far in the file."""
 
+    def flush_if_due(self) -> None:
+        """Flush if what is held has waited its longest (call it when traffic pauses)."""
+
     def close(self) -> None:
         """Finish the file."""
 
@@ -115,6 +118,10 @@ class JsonLinesWriter:
 
     def flush(self) -> None:
         """Flush the file."""
+        self._out.flush()
+
+    def flush_if_due(self) -> None:
+        """Flush the file (a line costs nothing to flush)."""
         self._out.flush()
 
     def close(self) -> None:
@@ -176,13 +183,17 @@ class McapWriter:
         stamp = round(received * 1e9)
         self._sequence += 1
         self._writer.add_message(self._channel(key), stamp, payload, stamp, self._sequence)
-        if time.monotonic() - self._flushed >= self._flush_every_s:
-            self.flush()
+        self.flush_if_due()
 
     def flush(self) -> None:
         """Close the chunk in progress and write it."""
         self._writer.flush()
         self._flushed = time.monotonic()
+
+    def flush_if_due(self) -> None:
+        """Close the chunk when it is ``flush_every_s`` old (chunks stay large)."""
+        if time.monotonic() - self._flushed >= self._flush_every_s:
+            self.flush()
 
     def close(self) -> None:
         """Write the summary (indexes, statistics) and close the file."""

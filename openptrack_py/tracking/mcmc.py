@@ -117,7 +117,6 @@ class _Group:
     id: int
     particles: np.ndarray
     first_t: float
-    last_t: float
     seen_t: float
     shared_since: float | None = None
     colour: np.ndarray | None = None
@@ -229,7 +228,7 @@ class McmcTracker:
         else:
             observed = np.zeros(len(self.groups), dtype=bool)
         for g, prior in zip(self.groups, priors, strict=True):
-            g.particles, g.estimate, g.last_t = prior, prior[:, :2].mean(axis=0), t
+            g.particles, g.estimate = prior, prior[:, :2].mean(axis=0)
         rows = np.flatnonzero(observed)
         if not len(rows):
             return took
@@ -289,7 +288,7 @@ class McmcTracker:
         group: _Group,
         looks: list[np.ndarray | None],
         faces: list[tuple[np.ndarray, float] | None],
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Per detection: ``w_motion, w_colour P_colour + w_face P_face`` (Eq. 4-9)."""
         p = self.params
         n = len(looks)
@@ -308,10 +307,10 @@ class McmcTracker:
                         w_face[k] = min(max(item[1], 0.0), 1.0)
         w_colour = (1.0 - w_face) / (1.0 + p.gamma)
         w_motion = p.gamma * w_colour
-        return w_motion, w_colour * colour + w_face * face, colour, face
+        return w_motion, w_colour * colour + w_face * face
 
     def _chains(
-        self, priors: np.ndarray, xy: np.ndarray, terms: list[tuple[np.ndarray, ...]]
+        self, priors: np.ndarray, xy: np.ndarray, terms: list[tuple[np.ndarray, np.ndarray]]
     ) -> np.ndarray:
         """Metropolis-Hastings for every observed group at once; ``(G, particles, 6)``.
 
@@ -385,7 +384,7 @@ class McmcTracker:
         self.max_id += 1
         particles = np.zeros((self.params.particles, 6))
         particles[:, 0:2] = xy + self.rng.normal(0, 0.1, (self.params.particles, 2))
-        group = _Group(self.max_id, particles, t, t, t, estimate=np.array(xy, dtype=float))
+        group = _Group(self.max_id, particles, t, t, estimate=np.array(xy, dtype=float))
         self._learn(group, look, None)
         self.groups.append(group)
 
