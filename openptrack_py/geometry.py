@@ -77,3 +77,23 @@ def apply(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Apply a 4x4 transform to an ``(n, 3)`` array of points."""
     points = np.asarray(points, dtype=float)
     return points @ transform[:3, :3].T + transform[:3, 3]
+
+
+def polygon_area(vertices: np.ndarray) -> float:
+    """Area of a simple polygon given by its corners in order (shoelace formula).
+
+    Parameters
+    ----------
+    vertices : array_like, shape (n, 2)
+        Corners, clockwise or anticlockwise; fewer than three enclose nothing.
+
+    Examples
+    --------
+    >>> polygon_area([[0, 0], [2, 0], [2, 1], [0, 1]])
+    2.0
+    """
+    v = np.asarray(vertices, dtype=float).reshape(-1, 2)
+    if len(v) < 3:
+        return 0.0
+    x, y = v[:, 0], v[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))

@@ -19,6 +19,7 @@ from openptrack_py.sim.render import DepthRenderer
 from openptrack_py.sim.sensors import SensorSpec
 from openptrack_py.sim.world import Obstacle, Room
 from tests.conftest import people_snapshot
+from tests.cores import map_on_cores
 
 
 def _scene(rng: np.random.Generator) -> tuple[Room, Pose, list] | None:
@@ -46,8 +47,9 @@ def _scene(rng: np.random.Generator) -> tuple[Room, Pose, list] | None:
     return Room(14.0, 3.2, obstacles=tuple(obstacles)), pose, people
 
 
-def _count(seed: int, kind: str = "kinect2", trials: int = 40) -> tuple[int, int, int]:
-    """False people, people found and people to find over a seed's scenes."""
+def _count(case: tuple[int, str], trials: int = 40) -> tuple[int, int, int]:
+    """False people, people found and people to find over a (seed, sensor type)'s scenes."""
+    seed, kind = case
     rng = np.random.default_rng(seed)
     false = found = wanted = 0
     for trial in range(trials):
@@ -85,9 +87,8 @@ def test_board_and_shelf_tops_between_people_are_fewer_people() -> None:
     deep shelf seen end-on, or a board edge blurred by stereo noise at 6 m, still passes
     as a head now and then.
     """
-    totals = np.array(
-        [_count(seed, kind) for kind in ("kinect2", "realsense") for seed in range(4, 8)]
-    )
+    cases = [(seed, kind) for kind in ("kinect2", "realsense") for seed in range(4, 8)]
+    totals = np.array(map_on_cores(_count, cases))
     false, found, wanted = totals.sum(axis=0)
     assert wanted >= 300
     assert found == wanted  # no real person lost

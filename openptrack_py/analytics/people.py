@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from openptrack_py.geometry import polygon_area
+
 __all__ = ["PersonSummary", "PersonTally", "ThinnedSeries", "convex_hull", "polygon_area"]
 
 TILE = 16
@@ -97,15 +99,6 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
 
     lower, upper = half(pts), half(pts[::-1])
     return np.array(lower[:-1] + upper[:-1])
-
-
-def polygon_area(vertices: np.ndarray) -> float:
-    """Area of a simple polygon (shoelace formula), square metres."""
-    v = np.asarray(vertices, dtype=float).reshape(-1, 2)
-    if len(v) < 3:
-        return 0.0
-    x, y = v[:, 0], v[:, 1]
-    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 @dataclass

@@ -25,7 +25,7 @@ import numpy as np
 
 from openptrack_py.calibration.checkerboard import Checkerboard
 from openptrack_py.detection.frame import Intrinsics
-from openptrack_py.geometry import invert, world_from_optical
+from openptrack_py.geometry import invert, polygon_area, world_from_optical
 from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.sim.boards import BOARD_THICKNESS_M
 from openptrack_py.sim.sensor_spec import SensorSpec
@@ -287,9 +287,7 @@ def _grid_area_px(board: Checkerboard, camera: _Camera, world_from_board: np.nda
     pose = camera.camera_from_world @ world_from_board
     cam = ends @ pose[:3, :3].T + pose[:3, 3]
     k = camera.intrinsics
-    u = k.fx * cam[:, 0] / cam[:, 2]
-    v = k.fy * cam[:, 1] / cam[:, 2]
-    return 0.5 * abs(float(u @ np.roll(v, 1) - v @ np.roll(u, 1)))
+    return polygon_area(np.column_stack([k.fx * cam[:, 0], k.fy * cam[:, 1]]) / cam[:, 2:3])
 
 
 def _floor_placement(

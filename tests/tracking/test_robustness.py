@@ -19,6 +19,7 @@ import pytest
 from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import Detection, DetectionBatch
 from openptrack_py.tracking import Tracker, build_tracker
+from tests.cores import map_on_cores
 from tests.tracking.helpers import FRAME, T0
 
 SENSORS = ("a", "b")
@@ -108,14 +109,27 @@ def _run(
     return near_person, near_decoy
 
 
+STILL_SEEDS = (0, 1)
+
+
+def _five_minutes(seed: int) -> tuple[list[set[int]], list[set[int]]]:
+    """Five minutes: a person walks in and stands still; a decoy recurs at one spot."""
+    return _run(build_tracker(TrackerConfig()), 300.0, seed, person=True, decoy=True)
+
+
+@pytest.fixture(scope="module")
+def five_minutes() -> dict[int, tuple[list[set[int]], list[set[int]]]]:
+    """Both seeds' runs, made at once on every core."""
+    return dict(zip(STILL_SEEDS, map_on_cores(_five_minutes, STILL_SEEDS), strict=True))
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [0, 1], ids=["seed0", "seed1"])
+@pytest.mark.parametrize("seed", STILL_SEEDS, ids=[f"seed{s}" for s in STILL_SEEDS])
 def test_still_person_keeps_their_id_and_static_false_positive_is_never_confirmed(
-    seed: int,
+    seed: int, five_minutes: dict[int, tuple[list[set[int]], list[set[int]]]]
 ) -> None:
     """Five minutes: a person walks in and stands still; a decoy recurs at one spot."""
-    tracker = build_tracker(TrackerConfig())
-    near_person, near_decoy = _run(tracker, 300.0, seed, person=True, decoy=True)
+    near_person, near_decoy = five_minutes[seed]
     ids = set().union(*near_person[int(10 / FRAME) :])
     assert len(ids) == 1, f"the standing person had ids {ids}"
     shown = sum(bool(s) for s in near_person[int(10 / FRAME) :]) / len(near_person[300:])
