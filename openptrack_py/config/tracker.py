@@ -167,6 +167,15 @@ class TrackerConfig(StrictModel):
         standing close come out of a detector as one blob) updates its track with this
         many times its noise, so the track is not dragged onto the other person's course
         (1: no difference).
+    approach_stop_s : float
+        Two confirmed tracks that could both have produced one detection belong to
+        people close together; while they are on a collision course, the speed at which
+        they approach each other decays with this time constant. People about to meet
+        slow down and step aside (the social force model of pedestrian motion, Helbing
+        and Molnar, 1995); a constant-velocity track coasting through the blob of two
+        people comes out on the far side with the other person. 0 (the default): no
+        slowing. 0.3 cut identity switches on ``crowd`` and ``classroom`` but cost IDF1
+        on ``installation`` (docs/evaluation.md), so it is not on by default yet.
     support_rate : float
         Weight of one expected sensor frame in a track's support (the exponential
         average of detected / expected frames).
@@ -254,6 +263,7 @@ class TrackerConfig(StrictModel):
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
     unseen_stop_s: float = Field(1.0, ge=0.0, le=60.0)
     shared_noise_factor: float = Field(10.0, ge=1.0, le=100.0)
+    approach_stop_s: float = Field(0.0, ge=0.0, le=60.0)
     frame_id: Name | None = None
     discover_sensors: bool = False
     sensor_forget_s: float = Field(30.0, gt=0.0, le=86400.0)
@@ -292,6 +302,7 @@ ROBUSTNESS_OFF: dict[str, object] = {
     "keepalive_min_support": 0.0,
     "unseen_stop_s": 0.0,
     "shared_noise_factor": 1.0,
+    "approach_stop_s": 0.0,
 }
 """``TrackerConfig`` settings that turn off every mechanism of robust track management
 (learned sensor noise and alignment, the birth gate and least separation, confirmation on

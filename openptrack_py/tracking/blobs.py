@@ -3,7 +3,8 @@
 The childcare tracking paper (section 2.3.3) lets several children share one detected
 area. Here a confirmed track left without a detection may follow the detection of a
 track the identity role knows to be another person standing beside it, so that neither
-identity is dropped or swapped while they stand together.
+identity is dropped or swapped while they stand together. Two tracks that could both
+have produced one detection also stop closing in on each other (:func:`slow_approaches`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from openptrack_py.tracking.state import DetectionArrays, TrackTable
 BLOB_RADIUS_M = 0.3
 """How far each of two people standing in one blob is from its centroid (half the
 distance between two people side by side)."""
+COLLISION_MISS_M = 0.3
+"""Two people whose courses would pass closer than this, centre to centre, would walk
+into each other (a shoulder width is about 0.4 m)."""
 
 
 def share_blobs(
@@ -91,3 +95,36 @@ def shared_noise(
         out = out.copy()
         out[in_blob, 0:2, 0:2] += BLOB_RADIUS_M**2 * np.eye(2)
     return out
+
+
+def slow_approaches(tb: TrackTable, gated: np.ndarray, dt: float, stop_s: float) -> None:
+    """Slow down confirmed tracks on a collision course within one detection's reach.
+
+    Two confirmed tracks gated to one detection belong to people close enough for one
+    blob. People about to walk into each other slow down and step aside rather than walk
+    through each other (the social force model, Helbing and Molnar, 1995), and a
+    detection that may be either of them, or both, says little about who went where. So
+    when their courses would pass within :data:`COLLISION_MISS_M`, the component of
+    their relative velocity that brings them together decays with time constant
+    ``stop_s`` over ``dt``, shared equally (their mean velocity is kept). Walking side
+    by side, parting, or passing each other a body apart is left alone.
+    """
+    if stop_s <= 0 or dt <= 0 or len(tb) < 2:
+        return
+    near = (gated & tb.confirmed[:, None]).astype(np.int64)
+    if not (near.sum(axis=0) >= 2).any():
+        return
+    a, b = np.nonzero(np.triu(near @ near.T, 1))
+    gap = tb.x[b, 0:2] - tb.x[a, 0:2]
+    norm = np.linalg.norm(gap, axis=1)
+    keep = norm > 1e-6
+    a, b, gap, norm = a[keep], b[keep], gap[keep], norm[keep]
+    rel = tb.x[a, 2:4] - tb.x[b, 2:4]  # how fast a goes towards b
+    closing = np.einsum("ij,ij->i", rel, gap) / norm
+    # centre-to-centre distance at their closest approach, if they kept walking
+    until = np.einsum("ij,ij->i", gap, rel) / np.maximum(np.einsum("ij,ij->i", rel, rel), 1e-12)
+    miss = np.linalg.norm(gap - rel * until[:, None], axis=1)
+    closing = np.where(miss < COLLISION_MISS_M, np.maximum(closing, 0.0), 0.0)
+    cut = (0.5 * (1.0 - np.exp(-dt / stop_s)) * closing / norm)[:, None] * gap
+    np.subtract.at(tb.x, (a, slice(2, 4)), cut)
+    np.add.at(tb.x, (b, slice(2, 4)), cut)

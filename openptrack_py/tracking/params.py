@@ -61,6 +61,9 @@ class TrackerParams:
     shared_noise_factor : float
         Factor on the noise of a detection that two confirmed tracks could both have
         produced (two people in one blob), so it drags its track less.
+    approach_stop_s : float
+        Time constant of the decay of the approach speed of two confirmed tracks that
+        could both have produced one detection (0: none).
     evidence_per_hit, evidence_per_miss : float
         What a detection, and a frame that should have seen the track but did not, add
         to its evidence (``TrackTable.evidence``).
@@ -88,6 +91,7 @@ class TrackerParams:
     keepalive_min_support: float = 0.0
     unseen_stop_s: float = 0.0
     shared_noise_factor: float = 1.0
+    approach_stop_s: float = 0.0
     evidence_per_hit: float = 0.0
     evidence_per_miss: float = 0.0
     evidence_memory_s: float = 0.5

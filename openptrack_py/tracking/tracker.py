@@ -43,7 +43,7 @@ from openptrack_py.tracking.base import (
     SensorModel,
     Stateful,
 )
-from openptrack_py.tracking.blobs import share_blobs, shared_noise
+from openptrack_py.tracking.blobs import share_blobs, shared_noise, slow_approaches
 from openptrack_py.tracking.bookkeeping import (
     absorb,
     damp_unseen,
@@ -162,6 +162,7 @@ class Tracker:
         self.ukf = UnscentedKalmanFilter(MerweSigmaPoints(4))
         self.table = TrackTable()
         self.time: float | None = None
+        self._step_dt = 0.0  # time predicted over by the current step, seconds
         self.max_id = 0
         self.max_published_id = 0
         self.seq = 0
@@ -313,6 +314,7 @@ class Tracker:
 
     def _predict_to(self, t: float) -> None:
         tb = self.table
+        self._step_dt = 0.0 if self.time is None else max(t - self.time, 0.0)
         if self.time is not None and len(tb) and t > self.time:
             dt = np.full(len(tb), t - self.time)
             tb.x, tb.cov = self.ukf.predict(
@@ -389,6 +391,7 @@ class Tracker:
         tb.x[rows], tb.cov[rows] = self.ukf.update(
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used
         )
+        slow_approaches(tb, gated, self._step_dt, self.params.approach_stop_s)
         prior_support = tb.support[rows].copy()
         self._update_support(rows, dets.sensor_id, t)
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
