@@ -3,9 +3,8 @@
 Each batch is one step:
 
 1. every track is predicted to the batch's capture time with the real ``dt``;
-2. each detection is compared with each track by the squared Mahalanobis distance of
-   its residual under that track's *predicted* innovation covariance, so the gate
-   widens while a person is unseen;
+2. each detection is compared with each track by the squared Mahalanobis distance of its
+   residual under the track's *predicted* innovation covariance (wider while unseen);
 3. pairs outside the chi-square gate are inadmissible;
 4. a global nearest-neighbour assignment picks pairs (cost = negative log-likelihood +
    the detector confidence term + the identity role's re-ranking), first among
@@ -162,7 +161,6 @@ class Tracker:
         self.ukf = UnscentedKalmanFilter(MerweSigmaPoints(4))
         self.table = TrackTable()
         self.time: float | None = None
-        self._step_dt = 0.0  # time predicted over by the current step, seconds
         self.max_id = 0
         self.max_published_id = 0
         self.seq = 0
@@ -273,8 +271,9 @@ class Tracker:
             batch, self.params.min_confidence_detections, self.identity.needs_looks
         )
         dets = self.sensors.correct(dets)
+        dt = 0.0 if self.time is None else max(t - self.time, 0.0)
         self._predict_to(t)
-        assigned, d2 = self._associate_and_update(dets, t)
+        assigned, d2 = self._associate_and_update(dets, t, dt)
         self._start_tracks(dets, assigned, d2, t)
         self._lifecycle(t)
 
@@ -314,7 +313,6 @@ class Tracker:
 
     def _predict_to(self, t: float) -> None:
         tb = self.table
-        self._step_dt = 0.0 if self.time is None else max(t - self.time, 0.0)
         if self.time is not None and len(tb) and t > self.time:
             dt = np.full(len(tb), t - self.time)
             tb.x, tb.cov = self.ukf.predict(
@@ -339,9 +337,9 @@ class Tracker:
         return proj, z, r, d2, logdet
 
     def _associate_and_update(
-        self, dets: DetectionArrays, t: float
+        self, dets: DetectionArrays, t: float, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Assign and update; return the assigned-detection mask and every pair's ``d2``."""
+        """Assign and update (``dt``: since the last step); return the assigned mask and ``d2``."""
         tb = self.table
         assigned = np.zeros(len(dets), dtype=bool)
         if not len(tb) or not len(dets):
@@ -391,7 +389,7 @@ class Tracker:
         tb.x[rows], tb.cov[rows] = self.ukf.update(
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used
         )
-        slow_approaches(tb, gated, self._step_dt, self.params.approach_stop_s)
+        slow_approaches(tb, gated, dt, self.params.approach_stop_s)
         prior_support = tb.support[rows].copy()
         self._update_support(rows, dets.sensor_id, t)
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
