@@ -174,8 +174,8 @@ class TrackerConfig(StrictModel):
         slow down and step aside (the social force model of pedestrian motion, Helbing
         and Molnar, 1995); a constant-velocity track coasting through the blob of two
         people comes out on the far side with the other person. 0 (the default): no
-        slowing. 0.3 cut identity switches on ``crowd`` and ``classroom`` but cost IDF1
-        on ``installation`` (docs/evaluation.md), so it is not on by default yet.
+        slowing. 0.3 raised IDF1 on ``crowd`` and ``classroom`` but lowered it on
+        ``installation`` and added duplicates (docs/evaluation.md): not on by default yet.
     support_rate : float
         Weight of one expected sensor frame in a track's support (the exponential
         average of detected / expected frames).

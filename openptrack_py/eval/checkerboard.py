@@ -268,28 +268,36 @@ def _capture(
 
     None unless the board is found in at least half of the ``frames`` frames.
     """
-    sensor, renderer = rig.sensor, rig.renderer
-    stamp = placement.stamp + rig.phase
-    snap = holder_snapshot(placement, stamp)
-    scene = rig.truth.render(snap, stamp, seq).frame.depth
     views = []
-    for i in range(frames):
-        frame = draw_board(
-            renderer.render(snap, stamp + i / sensor.spec().rate_hz, seq),
-            board,
-            placement.world_from_board,
-            renderer.world_from_camera,
-            renderer.intrinsics,
-            sensor_type=sensor.type,
-            rng=rig.rng,
-            scene_depth=scene,
-        ).frame
-        view = detect_board(frame, board, sensor.type)
+    for frame in placement_frames(rig, board, placement, seq, frames):
+        view = detect_board(frame, board, rig.sensor.type)
         if view is not None:
             views.append(view)
     if 2 * len(views) < frames or not views:
         return None
-    return average_views(views, board, renderer.intrinsics)
+    return average_views(views, board, rig.renderer.intrinsics)
+
+
+def placement_frames(
+    rig: SensorRig, board: Checkerboard, placement: BoardPlacement, seq: int, frames: int
+) -> Iterator[Frame]:
+    """One sensor's ``frames`` consecutive frames of one placement, the board drawn in."""
+    renderer = rig.renderer
+    period = 1.0 / rig.sensor.spec().rate_hz
+    stamp = placement.stamp + rig.phase
+    snap = holder_snapshot(placement, stamp)
+    scene = rig.truth.render(snap, stamp, seq).frame.depth
+    for i in range(frames):
+        yield draw_board(
+            renderer.render(snap, stamp + i * period, seq),
+            board,
+            placement.world_from_board,
+            renderer.world_from_camera,
+            renderer.intrinsics,
+            sensor_type=rig.sensor.type,
+            rng=rig.rng,
+            scene_depth=scene,
+        ).frame
 
 
 def record_board_session(
@@ -332,22 +340,9 @@ def session_frames(
     ``held_frames`` of each held placement (the board still), ``floor_frames`` of the
     board on the floor, none while it is carried between placements.
     """
-    period = 1.0 / rig.sensor.spec().rate_hz
     for seq, placement in enumerate(session.placements):
-        stamp = placement.stamp + rig.phase
-        snap = holder_snapshot(placement, stamp)
-        scene = rig.truth.render(snap, stamp, seq).frame.depth
-        for i in range(floor_frames if placement.on_floor else held_frames):
-            yield draw_board(
-                rig.renderer.render(snap, stamp + i * period, seq),
-                session.board,
-                placement.world_from_board,
-                rig.renderer.world_from_camera,
-                rig.renderer.intrinsics,
-                sensor_type=rig.sensor.type,
-                rng=rig.rng,
-                scene_depth=scene,
-            ).frame
+        frames = floor_frames if placement.on_floor else held_frames
+        yield from placement_frames(rig, session.board, placement, seq, frames)
 
 
 def refit_intrinsics(

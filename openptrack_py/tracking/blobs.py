@@ -120,11 +120,11 @@ def slow_approaches(tb: TrackTable, gated: np.ndarray, dt: float, stop_s: float)
     keep = norm > 1e-6
     a, b, gap, norm = a[keep], b[keep], gap[keep], norm[keep]
     rel = tb.x[a, 2:4] - tb.x[b, 2:4]  # how fast a goes towards b
-    closing = np.einsum("ij,ij->i", rel, gap) / norm
+    toward = np.einsum("ij,ij->i", rel, gap)
     # centre-to-centre distance at their closest approach, if they kept walking
-    until = np.einsum("ij,ij->i", gap, rel) / np.maximum(np.einsum("ij,ij->i", rel, rel), 1e-12)
+    until = toward / np.maximum(np.einsum("ij,ij->i", rel, rel), 1e-12)
     miss = np.linalg.norm(gap - rel * until[:, None], axis=1)
-    closing = np.where(miss < COLLISION_MISS_M, np.maximum(closing, 0.0), 0.0)
+    closing = np.where(miss < COLLISION_MISS_M, np.maximum(toward / norm, 0.0), 0.0)
     cut = (0.5 * (1.0 - np.exp(-dt / stop_s)) * closing / norm)[:, None] * gap
     np.subtract.at(tb.x, (a, slice(2, 4)), cut)
     np.add.at(tb.x, (b, slice(2, 4)), cut)

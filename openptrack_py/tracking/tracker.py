@@ -271,8 +271,7 @@ class Tracker:
             batch, self.params.min_confidence_detections, self.identity.needs_looks
         )
         dets = self.sensors.correct(dets)
-        dt = 0.0 if self.time is None else max(t - self.time, 0.0)
-        self._predict_to(t)
+        dt = self._predict_to(t)
         assigned, d2 = self._associate_and_update(dets, t, dt)
         self._start_tracks(dets, assigned, d2, t)
         self._lifecycle(t)
@@ -311,15 +310,16 @@ class Tracker:
 
     # --------------------------------------------------------------- internals
 
-    def _predict_to(self, t: float) -> None:
-        tb = self.table
-        if self.time is not None and len(tb) and t > self.time:
-            dt = np.full(len(tb), t - self.time)
+    def _predict_to(self, t: float) -> float:  # returns the time predicted over
+        step = 0.0 if self.time is None else max(t - self.time, 0.0)
+        if step > 0 and len(self.table):
+            tb, dt = self.table, np.full(len(self.table), step)
             tb.x, tb.cov = self.ukf.predict(
                 tb.x, tb.cov, dt, self.motion.fx, self.motion.noise(dt)
             )
-            damp_unseen(tb, t, dt[0], self.params)
+            damp_unseen(tb, t, step, self.params)
         self.time = t if self.time is None else max(self.time, t)
+        return step
 
     def _pair_terms(
         self, dets: DetectionArrays, t: float
