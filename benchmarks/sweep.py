@@ -44,7 +44,7 @@ import numpy as np
 
 from openptrack_py.config import ROBUSTNESS_OFF, TrackerConfig
 from openptrack_py.eval.runner import Hypotheses, HypothesisFeed, evaluate
-from openptrack_py.eval.trackers import tracking_feed
+from openptrack_py.eval.trackers import load_tracker_config, tracking_feed
 from openptrack_py.sim.profiles import REALISTIC, NoiseProfile
 from openptrack_py.sim.scenarios import build_scenario
 from openptrack_py.sim.simulator import SensorFrame, TruthFrame
@@ -133,9 +133,11 @@ class NorfairFeed:
             self._proc.wait(timeout=30)
 
 
-def _feed(tracker: str, norfair_python: str | None) -> HypothesisFeed:
+def _feed(
+    tracker: str, norfair_python: str | None, overrides: tuple[str, ...] = ()
+) -> HypothesisFeed:
     if tracker == "ours":
-        return tracking_feed(TrackerConfig())
+        return tracking_feed(load_tracker_config(None, overrides))
     if tracker == "plain":
         return tracking_feed(TrackerConfig(**ROBUSTNESS_OFF))
     if tracker == "stonesoup":
@@ -147,12 +149,14 @@ def _feed(tracker: str, norfair_python: str | None) -> HypothesisFeed:
     raise ValueError(f"sweep: unknown tracker {tracker!r}")
 
 
-def run_point(job: tuple[str, float, str, int, float, str | None]) -> dict[str, object]:
-    """One tracker on one seed at one point of one axis."""
-    axis, value, tracker, seed, duration_s, norfair_python = job
+def run_point(
+    job: tuple[str, float, str, int, float, str | None, tuple[str, ...]],
+) -> dict[str, object]:
+    """One tracker on one seed at one point of one axis (``ours`` with its overrides)."""
+    axis, value, tracker, seed, duration_s, norfair_python, overrides = job
     profile = AXES[axis].apply(REALISTIC, value)
     scenario = build_scenario(SCENARIO, seed=seed, duration_s=duration_s, profile=profile)
-    feed = _feed(tracker, norfair_python)
+    feed = _feed(tracker, norfair_python, overrides)
     start = time.perf_counter()
     try:
         result = evaluate(scenario, feed)
@@ -260,6 +264,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--make-norfair-env", action="store_true", help="create .venv-norfair")
     parser.add_argument("--quick", action="store_true", help="20 s, first seed, no files")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "robustness_sweep")
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE",
+        help="a tracker setting for ours (repeatable); pair it with --out elsewhere",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     seeds, duration = (args.seeds[:1], 20.0) if args.quick else (args.seeds, args.duration)
     norfair = args.norfair_python
@@ -270,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
         print("sweep: norfair left out (no --norfair-python, no .venv-norfair)", file=sys.stderr)
     jobs = [
         (axis, v, t, s, min(duration, STONESOUP_BUDGET[1]) if t == "stonesoup" else duration,
-         norfair)
+         norfair, tuple(args.set))
         for axis, spec in AXES.items()
         for v in spec.values
         for t in trackers
