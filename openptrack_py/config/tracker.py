@@ -158,6 +158,12 @@ class TrackerConfig(StrictModel):
         track left on a static false positive, cannot live on a confident false
         detection now and then, while a person seen again after an occlusion regains
         support within a few frames.
+    occlusion_aware_support : bool
+        A sensor's frames in which a track is hidden behind a person it detected (on the
+        line of sight from where the ranges of its detections place it, below that
+        person's head) say nothing of the track's support and evidence, so a person
+        hidden in a crowd keeps their track; except near a detected person (within twice
+        ``merge_distance_m``), where the track may be that person's second one.
     unseen_stop_s : float
         While a track is unseen its velocity decays with this time constant: people
         stop and turn, so a track does not coast on across the room after someone who
@@ -261,6 +267,7 @@ class TrackerConfig(StrictModel):
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
     support_rate: float = Field(0.1, gt=0.0, le=1.0)
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
+    occlusion_aware_support: bool = False
     unseen_stop_s: float = Field(1.0, ge=0.0, le=60.0)
     shared_noise_factor: float = Field(10.0, ge=1.0, le=100.0)
     approach_stop_s: float = Field(0.0, ge=0.0, le=60.0)
@@ -300,6 +307,7 @@ ROBUSTNESS_OFF: dict[str, object] = {
     "confirm_min_displacement_m": 0.0,
     "merge_after_s": 0.0,
     "keepalive_min_support": 0.0,
+    "occlusion_aware_support": False,
     "unseen_stop_s": 0.0,
     "shared_noise_factor": 1.0,
     "approach_stop_s": 0.0,

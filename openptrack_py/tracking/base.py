@@ -132,6 +132,15 @@ class SensorModel(Protocol):
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` the sensor is known to see."""
 
+    def hidden(
+        self, sensor_id: str, xy: np.ndarray, seen: np.ndarray, twin_m: float
+    ) -> np.ndarray:
+        """Mask of floor positions ``xy (n, 2)`` hidden from it behind ``xy[seen]``.
+
+        ``seen`` are the rows it detected now; a position within ``twin_m`` of one of
+        them is not hidden (it may be that person's second track).
+        """
+
     def clutter_density(self, sensor_id: str) -> float:
         """Detections per frame and square metre no track explains (0: unknown)."""
 

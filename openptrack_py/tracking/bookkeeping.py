@@ -129,6 +129,7 @@ def update_support(
     sensor_index: int,
     t: float,
     params: TrackerParams,
+    hidden: np.ndarray | None = None,
 ) -> None:
     """Tracks ``expected`` to be seen (and those hit) gain support and evidence if hit.
 
@@ -137,13 +138,19 @@ def update_support(
     sensor that has detected the track within ``params.evidence_memory_s``, whatever
     the coverage map says yet: a sensor whose view of the place has been blocked for a
     while (a wall, a cabinet, other people) or cut by the edge of its image says nothing.
+    Nor does a frame in which the track is ``hidden`` from the sensor behind another
+    person, whether it detected the track or not: which frames count must not depend on
+    their outcome, or a static false positive behind people, whose misses would be
+    excused and whose hits not, would pass for a person.
     """
     hit = np.zeros(len(tb), dtype=bool)
     hit[hit_rows] = True
-    expected = expected | hit
+    visible = np.ones(len(tb), dtype=bool) if hidden is None else ~hidden
+    expected = (expected | hit) & visible
     tb.support[expected] += params.support_rate * (hit[expected] - tb.support[expected])
     slot = sensor_slot(sensor_index)
-    counted = hit | (t - tb.sensor_hit_t[:, slot] <= params.evidence_memory_s)
+    recent = t - tb.sensor_hit_t[:, slot] <= params.evidence_memory_s
+    counted = (hit | recent) & visible
     tb.evidence[counted] += np.where(
         hit[counted], params.evidence_per_hit, params.evidence_per_miss
     )

@@ -3,14 +3,18 @@
 A cell of a sensor is *covered* once the sensor has reported at least
 :data:`COVERAGE_MIN_DETECTIONS` detections in it. The tracker asks which sensors should
 see a track (its support) and how large the floor each sensor watches is (its clutter
-density). Each batch is counted once, by its sequence number, in whatever order batches
-are applied, so a late-batch replay has nothing to undo and the map is shared, not
-copied, by snapshots.
+density). With the map go the sensors' positions learned from the same detections
+(:mod:`~openptrack_py.tracking.viewpoint`), which tell whether a covered track is hidden
+behind another. Each batch is counted once, by its sequence number, in whatever order
+batches are applied, so a late-batch replay has nothing to undo and the map is shared,
+not copied, by snapshots.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from openptrack_py.tracking.viewpoint import Viewpoints, hidden
 
 COVERAGE_CELL_M = 0.5
 """Side of a coverage cell, metres."""
@@ -54,9 +58,20 @@ class Coverage:
 
     def __init__(self) -> None:
         self._sensors: dict[str, _SensorCoverage] = {}
+        self._viewpoints = Viewpoints()
 
-    def mark(self, sensor_id: str, seq: int, xy: np.ndarray) -> None:
-        """Count a batch's detections ``xy`` in their cells, once per sequence number."""
+    def __setstate__(self, state: dict[str, object]) -> None:
+        # a checkpoint written before the sensors' positions were learned
+        self.__dict__.update(state)
+        self.__dict__.setdefault("_viewpoints", Viewpoints())
+
+    def mark(
+        self, sensor_id: str, seq: int, xy: np.ndarray, distance: np.ndarray | None = None
+    ) -> None:
+        """Count a batch's detections ``xy`` in their cells, once per sequence number.
+
+        Their ranges ``distance`` (if given) locate the sensor.
+        """
         if not len(xy):
             return
         sensor = self._sensors.setdefault(sensor_id, _SensorCoverage())
@@ -68,6 +83,21 @@ class Coverage:
                 floor = max(sensor.seqs) - _REPLAYABLE_SEQS
                 sensor.seqs.difference_update([q for q in sensor.seqs if q < floor])
         sensor.add(_cell_codes(xy))
+        if distance is not None:
+            self._viewpoints.add(sensor_id, xy, distance)
+
+    def hidden(
+        self, sensor_id: str, xy: np.ndarray, seen: np.ndarray, twin_m: float
+    ) -> np.ndarray:
+        """Mask of floor positions ``xy (n, 2)`` hidden from this sensor behind ``xy[seen]``.
+
+        See :func:`~openptrack_py.tracking.viewpoint.hidden`; none while the sensor's
+        position is not known.
+        """
+        view = self._viewpoints.view(sensor_id)
+        if view is None:
+            return np.zeros(len(xy), dtype=bool)
+        return hidden(view[0], xy, seen, twin_m, view[1])
 
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` in cells this sensor is known to see."""

@@ -81,6 +81,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             max_tracks=cfg.max_tracks,
             support_rate=cfg.support_rate,
             keepalive_min_support=cfg.keepalive_min_support,
+            occlusion_twin_m=(2.0 * cfg.merge_distance_m if cfg.occlusion_aware_support else 0.0),
             unseen_stop_s=cfg.unseen_stop_s,
             shared_noise_factor=cfg.shared_noise_factor,
             approach_stop_s=cfg.approach_stop_s,

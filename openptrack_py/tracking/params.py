@@ -56,6 +56,11 @@ class TrackerParams:
     keepalive_min_support : float
         A confident detection keeps a track alive only if the track's support (before
         that detection) is at least this.
+    occlusion_twin_m : float
+        A track hidden from a sensor behind a track it detected is not expected to be
+        seen by it, unless it is within this distance of one it detected (see
+        :func:`~openptrack_py.tracking.viewpoint.hidden`); 0: every covered track is
+        expected.
     unseen_stop_s : float
         Time constant of the velocity decay of unseen tracks (0: none).
     shared_noise_factor : float
@@ -89,6 +94,7 @@ class TrackerParams:
     support_rate: float = 0.2
     multi_sensor_s: float = 1.0
     keepalive_min_support: float = 0.0
+    occlusion_twin_m: float = 0.0
     unseen_stop_s: float = 0.0
     shared_noise_factor: float = 1.0
     approach_stop_s: float = 0.0

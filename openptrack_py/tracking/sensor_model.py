@@ -271,7 +271,7 @@ class OnlineSensorModel:
 
     def correct(self, dets: DetectionArrays) -> DetectionArrays:
         """The detections with their sensor's misalignment removed; marks its coverage."""
-        self._coverage.mark(dets.sensor_id, dets.seq, dets.xy)
+        self._coverage.mark(dets.sensor_id, dets.seq, dets.xy, dets.distance)
         st = self._sensors.get(dets.sensor_id)
         if st is None or st.align.weight <= 0 or not len(dets):
             return dets
@@ -296,6 +296,12 @@ class OnlineSensorModel:
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` where this sensor has reported people."""
         return self._coverage.covers(sensor_id, xy)
+
+    def hidden(
+        self, sensor_id: str, xy: np.ndarray, seen: np.ndarray, twin_m: float
+    ) -> np.ndarray:
+        """Mask of floor positions ``xy (n, 2)`` hidden from this sensor behind ``xy[seen]``."""
+        return self._coverage.hidden(sensor_id, xy, seen, twin_m)
 
     # ----------------------------------------------------------------- learning
 
@@ -407,6 +413,12 @@ class StaticSensorModel:
 
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """No coverage is known."""
+        return np.zeros(len(xy), dtype=bool)
+
+    def hidden(
+        self, sensor_id: str, xy: np.ndarray, seen: np.ndarray, twin_m: float
+    ) -> np.ndarray:
+        """Nothing is known to be hidden."""
         return np.zeros(len(xy), dtype=bool)
 
     def learn(self, updates: SensorUpdates) -> None:

@@ -439,8 +439,7 @@ class Tracker:
         room = self.params.max_tracks - len(self.table)
         if room <= 0 or not len(new):
             return
-        new = new[:room]
-        n = len(new)
+        new, n = new[:room], min(room, len(new))
         ids = np.arange(self.max_id + 1, self.max_id + 1 + n, dtype=np.int64)
         self.max_id += n
         self.counters["tracks_started"] += n
@@ -468,17 +467,18 @@ class Tracker:
             tb.keep(~gone)
 
     def _update_support(self, hit_rows: np.ndarray, sensor_id: str, t: float) -> None:
-        """Tracks this sensor should have seen gain support if detected, lose it if not."""
+        """Tracks this sensor should see (none hidden behind one it saw) gain or lose support."""
         if len(self.table):
-            expected = self.sensors.covers(sensor_id, self.table.x[:, 0:2])
+            xy, twin = self.table.x[:, 0:2], self.params.occlusion_twin_m
+            expected = self.sensors.covers(sensor_id, xy)
+            hidden = self.sensors.hidden(sensor_id, xy, hit_rows, twin) if twin > 0 else None
             index = self._sensor_index.setdefault(sensor_id, len(self._sensor_index))
-            update_support(self.table, hit_rows, expected, index, t, self.params)
+            update_support(self.table, hit_rows, expected, index, t, self.params, hidden)
 
     def _merge(self, t: float) -> None:
-        """Fold each track that follows the same person as an older one into it."""
+        """Fold each track following the person of an older one (not one known apart) into it."""
         pairs = self.merger.merge(self.table, t)
         if pairs:
-            # two tracks the identity role knows to be two people are never merged
             keep, drop = (np.array(rows) for rows in zip(*pairs, strict=True))
             two = self.identity.distinct(self.table, keep, drop)
             pairs = [p for p, d in zip(pairs, two.tolist(), strict=True) if not d]

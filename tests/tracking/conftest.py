@@ -120,6 +120,11 @@ class PerfectSensors:
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         return np.zeros(len(xy), dtype=bool)
 
+    def hidden(
+        self, sensor_id: str, xy: np.ndarray, seen: np.ndarray, twin_m: float
+    ) -> np.ndarray:
+        return np.zeros(len(xy), dtype=bool)
+
     def clutter_density(self, sensor_id: str) -> float:
         return 0.0
 
