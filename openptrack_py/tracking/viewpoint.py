@@ -43,31 +43,35 @@ detections along one line cannot fix a sensor's position across it."""
 
 
 class _Normal:
-    """Normal equations of one sensor's position problem."""
+    """Normal equations of one sensor's position problem.
+
+    Rows ``(2x, 2y, -1)``: ``A^T A`` also holds the count of detections and the sums of
+    their positions and of their outer products, so they are read from it.
+    """
 
     def __init__(self) -> None:
         self.ata = np.zeros((3, 3))
         self.atb = np.zeros(3)
-        self.n = 0
-        self.sum_xy = np.zeros(2)
-        self.sum_xxyy = np.zeros((2, 2))
         self.view: tuple[np.ndarray, float] | None = None
+
+    @property
+    def n(self) -> int:
+        """Detections added."""
+        return round(float(self.ata[2, 2]))
 
     def add(self, xy: np.ndarray, distance: np.ndarray) -> None:
         a = np.column_stack([2.0 * xy, -np.ones(len(xy))])
         b = np.einsum("ij,ij->i", xy, xy) - distance**2
         self.ata += a.T @ a
         self.atb += a.T @ b
-        self.n += len(xy)
-        self.sum_xy += xy.sum(axis=0)
-        self.sum_xxyy += xy.T @ xy
         self.view = None
 
     def solve(self) -> tuple[np.ndarray, float] | None:
-        if self.view is not None or self.n < MIN_DETECTIONS:
+        n = self.n
+        if self.view is not None or n < MIN_DETECTIONS:
             return self.view
-        mean = self.sum_xy / self.n
-        spread = self.sum_xxyy / self.n - np.outer(mean, mean)
+        mean = -0.5 * self.ata[0:2, 2] / n
+        spread = 0.25 * self.ata[0:2, 0:2] / n - np.outer(mean, mean)
         if np.linalg.eigvalsh(spread)[0] < MIN_SPREAD_M2:
             return None
         sx, sy, c = np.linalg.solve(self.ata, self.atb)
