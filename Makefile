@@ -1,6 +1,6 @@
 # make demo   run the demo network on simulated sensors (DEMO_SECONDS=N stops after N s;
 #             RGBD=1 renders depth images and runs the real detector on them)
-# make test   run the test suite
+# make test   run the test suite (test files spread over every core)
 # make bench  print benchmark figures as JSON
 # Each target creates and fills .venv first when needed.
 
@@ -25,7 +25,7 @@ demo: $(STAMP)
 	$(VENV)/bin/openptrack launch demo --table $(if $(DEMO_SECONDS),--duration $(DEMO_SECONDS)) $(DEMO_ARGS)
 
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -n auto --dist loadfile
 
 bench: $(STAMP)
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m benchmarks.run_all

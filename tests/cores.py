@@ -1,9 +1,10 @@
 """Independent CPU-bound runs of one test, spread over the machine's cores.
 
-The suite runs in one process; a test that needs several seeded simulations (each a few
-seconds of pure computation) hands them to :func:`map_on_cores` so that both cores of a
-CI machine work. Workers are spawned, not forked: the test process may hold Zenoh
-sessions and their threads.
+``make test`` runs test files side by side (one pytest-xdist worker per core), but the
+long tail of the suite is a few heavy files; a test that needs several seeded
+simulations (each a few seconds of pure computation) hands them to :func:`map_on_cores`
+so that every core works on them, whichever worker runs it. Workers are spawned, not
+forked: the test process may hold Zenoh sessions and their threads.
 """
 
 from __future__ import annotations
