@@ -4,7 +4,8 @@ Whatever care birth takes, a person can end up with two confirmed tracks (two se
 whose calibrations disagree at a camera boundary, a burst of outliers). Left alone, the
 two share that person's detections and live forever: OpenPTrack's best-known failure.
 :class:`TrackMerger` merges them, keeping the older id, when they have stayed within
-``distance_m`` of each other for ``after_s``, moving alike and both being updated, and no
+``distance_m`` of each other for ``after_s``, moving alike and both detected lately (by
+any sensor, whether or not its detections still keep the track alive), and no
 single sensor frame has detected both of them at once in the last ``distinct_s`` (one
 sensor seeing two blobs in one frame is proof of two people: two people walking side by
 side are never merged).
@@ -33,7 +34,8 @@ class TrackMerger:
     distinct_s : float
         A pair detected in one sensor frame is two people for this long.
     fresh_s : float
-        Both tracks must have had a detection this recently.
+        Both tracks must have been detected this recently (by any sensor, whether or
+        not the detection kept the track alive).
     reattach_speed_mps : float
         A lost track may be the person of a new track that started within
         ``distance_m + reattach_speed_mps * elapsed`` of where it was last seen (0
@@ -162,7 +164,11 @@ class TrackMerger:
         """Pairs ``(keep_row, drop_row)`` to merge now; each row in at most one pair."""
         if self.after_s <= 0:
             return []
-        rows = np.flatnonzero(table.confirmed & (t - table.last_seen <= self.fresh_s))
+        # detected by any sensor, whether or not that kept the track alive: two tracks
+        # sharing one person's detections share their support too, and one of them
+        # often falls below the keepalive level
+        detected = np.maximum(table.last_seen, table.sensor_hit_t.max(axis=1, initial=-np.inf))
+        rows = np.flatnonzero(table.confirmed & (t - detected <= self.fresh_s))
         close = self._close_pairs(table, rows)
         for pair in close:
             self._last_close[pair] = t

@@ -7,6 +7,7 @@ import numpy as np
 from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import Detection, DetectionBatch
 from openptrack_py.tracking import TrackMerger, TrackTable, build_tracker
+from openptrack_py.tracking.state import SENSOR_SLOTS
 from tests.tracking.helpers import FRAME, T0
 
 
@@ -18,6 +19,7 @@ def _table(xy: list[tuple[float, float]], first_seen: list[float]) -> TrackTable
     table.confirmed = np.ones(n, dtype=bool)
     table.first_seen = np.array(first_seen)
     table.last_seen = np.full(n, 1e9)  # detected "now" at every query time
+    table.sensor_hit_t = np.full((n, SENSOR_SLOTS), -np.inf)
     return table
 
 
@@ -27,6 +29,23 @@ def test_close_tracks_merge_into_the_older_after_a_while() -> None:
     assert merger.merge(table, 0.0) == []
     assert merger.merge(table, 0.3) == []
     assert merger.merge(table, 0.6) == [(0, 1)]
+
+
+def test_a_duplicate_whose_support_has_fallen_is_still_merged() -> None:
+    # The duplicate's confident detections no longer keep it alive (its support fell
+    # below keepalive), but sensors still detect it: it is merged all the same. A
+    # track nobody has detected lately (coasting past someone) is not.
+    merger = TrackMerger(distance_m=0.35, after_s=0.5, fresh_s=0.3)
+    table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
+    table.last_seen[1] = -10.0
+    merged = []
+    for t in np.arange(0.0, 1.0, 0.1):
+        table.sensor_hit_t[1, 3] = t
+        merged += merger.merge(table, t)
+    assert merged == [(0, 1)]
+    merger = TrackMerger(distance_m=0.35, after_s=0.5, fresh_s=0.3)
+    table.sensor_hit_t[1] = -10.0
+    assert all(merger.merge(table, t) == [] for t in np.arange(0.0, 2.0, 0.1))
 
 
 def test_tracks_seen_in_one_frame_are_two_people() -> None:
