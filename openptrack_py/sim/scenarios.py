@@ -366,8 +366,14 @@ _BUILDERS: dict[str, tuple[Callable[..., tuple], str]] = {
         "6 people who leave by a door, stay out 10-120 s and come back as themselves",
     ),
     "uniforms": (_uniforms, "the classroom with everyone in one of two school uniforms"),
-    "overhead": (_overhead, "people crossing an entrance hall under 3 ceiling sensors"),
-    "corridor": (_corridor, "people walking down a corridor past poster boards and shelves"),
+    "overhead": (
+        _overhead,
+        "people crossing an entrance hall under 3 ceiling sensors looking straight down",
+    ),
+    "corridor": (
+        _corridor,
+        "people walking down a corridor past poster boards, a bookshelf and a coat rack",
+    ),
     "walk": (_walk, "one person walking through the art space to calibrate its sensors"),
 }
 SCENARIO_NAMES = tuple(_BUILDERS)
