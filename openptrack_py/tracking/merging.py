@@ -119,7 +119,10 @@ class TrackMerger:
         A person who walks behind a pillar reappears further along, within reach of
         where their track was lost: their new track need not prove again that it moves.
         Only a track that was walking when it was lost vouches (a track left on a static
-        false positive was not), and only for a new track started after it was lost.
+        false positive was not), only for a new track started after it was lost, and
+        only for one: the new track that started nearest to where it was last seen. A
+        person reappears once; in a crowd, a split blob or a false positive that starts
+        a track beside the person's new one is not vouched for too.
         """
         out = np.zeros(len(table), dtype=bool)
         if self.reattach_speed_mps <= 0:
@@ -130,8 +133,11 @@ class TrackMerger:
             return out
         lost = lost[self._walking(table, lost)]
         if len(lost):
-            ok, _ = self._within_reach(table, new, lost)
-            out[new] = ok.any(axis=1)
+            ok, gap = self._within_reach(table, new, lost)
+            gap = np.where(ok, gap, np.inf)
+            nearest = np.argmin(gap, axis=0)
+            vouched = np.isfinite(gap[nearest, np.arange(len(lost))])
+            out[new[nearest[vouched]]] = True
         return out
 
     @staticmethod

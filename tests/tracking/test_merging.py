@@ -7,7 +7,7 @@ import numpy as np
 from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import Detection, DetectionBatch
 from openptrack_py.tracking import TrackMerger, TrackTable, build_tracker
-from openptrack_py.tracking.state import SENSOR_SLOTS
+from openptrack_py.tracking.state import HISTORY, SENSOR_SLOTS
 from tests.tracking.helpers import FRAME, T0
 
 
@@ -100,3 +100,26 @@ def test_two_people_side_by_side_keep_two_tracks() -> None:
             out = tracker.step(DetectionBatch(sensor, k, T0 + t + 0.01 * i, "world", dets))
     assert sorted(tr.id for tr in out.tracks if tr.confirmed) == [1, 2]
     assert tracker.counters["tracks_merged"] == 0
+
+
+def test_a_lost_walker_vouches_for_one_new_track_only() -> None:
+    # A walking person's track is lost at t = 0; after it, two tentative tracks start
+    # within walking reach: the person's, near where they were last seen, and a split
+    # blob or a false positive a little further. Only the nearer is the continuation.
+    merger = TrackMerger(distance_m=0.35, reattach_speed_mps=1.5, walking_m=0.3)
+    table = _table([(2.0, 1.0), (2.2, 1.0), (2.0, 1.6)], first_seen=[-5.0, 0.5, 0.6])
+    table.confirmed = np.array([True, False, False])
+    table.last_seen = np.array([0.0, 1.0, 1.0])
+    table.recent_xy = np.array([(2.0, 1.0), (2.2, 1.0), (2.0, 1.6)])
+    table.birth_xy = table.recent_xy.copy()
+    # the lost track's estimate walked 1 m in its last second
+    table.hist_t = np.tile(np.linspace(-0.94, 0.0, HISTORY), (3, 1))
+    table.hist_xy = np.zeros((3, HISTORY, 2))
+    table.hist_xy[0, :, 0] = np.linspace(1.0, 2.0, HISTORY)
+    table.hist_xy[0, :, 1] = 1.0
+    both_reachable = merger._within_reach(table, np.array([1, 2]), np.array([0]))[0]
+    assert both_reachable.all()
+    assert merger.continuations(table, 1.0, lost_after_s=0.25).tolist() == [False, True, False]
+    # a track that was standing still when lost vouches for none
+    table.hist_xy[0, :, 0] = 2.0
+    assert not merger.continuations(table, 1.0, lost_after_s=0.25).any()
