@@ -120,6 +120,10 @@ def test_a_lost_walker_vouches_for_one_new_track_only() -> None:
     both_reachable = merger._within_reach(table, np.array([1, 2]), np.array([0]))[0]
     assert both_reachable.all()
     assert merger.continuations(table, 1.0, lost_after_s=0.25).tolist() == [False, True, False]
+    # the nearest track out of reach (it started before the loss) leaves the other vouched
+    table.first_seen[1] = -1.0
+    assert merger.continuations(table, 1.0, lost_after_s=0.25).tolist() == [False, False, True]
+    table.first_seen[1] = 0.5
     # a track that was standing still when lost vouches for none
     table.hist_xy[0, :, 0] = 2.0
     assert not merger.continuations(table, 1.0, lost_after_s=0.25).any()
