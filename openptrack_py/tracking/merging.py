@@ -170,10 +170,11 @@ class TrackMerger:
         """Pairs ``(keep_row, drop_row)`` to merge now; each row in at most one pair."""
         if self.after_s <= 0:
             return []
-        # detected by any sensor, whether or not that kept the track alive: two tracks
-        # sharing one person's detections share their support too, and one of them
-        # often falls below the keepalive level
-        detected = np.maximum(table.last_seen, table.sensor_hit_t.max(axis=1, initial=-np.inf))
+        # detected by any sensor, whether or not that kept the track alive (every
+        # detection that moves last_seen also stamps sensor_hit_t): two tracks sharing
+        # one person's detections share their support too, and one of them often falls
+        # below the keepalive level
+        detected = table.sensor_hit_t.max(axis=1, initial=-np.inf)
         rows = np.flatnonzero(table.confirmed & (t - detected <= self.fresh_s))
         close = self._close_pairs(table, rows)
         for pair in close:

@@ -20,6 +20,7 @@ def _table(xy: list[tuple[float, float]], first_seen: list[float]) -> TrackTable
     table.first_seen = np.array(first_seen)
     table.last_seen = np.full(n, 1e9)  # detected "now" at every query time
     table.sensor_hit_t = np.full((n, SENSOR_SLOTS), -np.inf)
+    table.sensor_hit_t[:, 0] = 1e9
     return table
 
 
@@ -38,6 +39,7 @@ def test_a_duplicate_whose_support_has_fallen_is_still_merged() -> None:
     merger = TrackMerger(distance_m=0.35, after_s=0.5, fresh_s=0.3)
     table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
     table.last_seen[1] = -10.0
+    table.sensor_hit_t[1] = -np.inf
     merged = []
     for t in np.arange(0.0, 1.0, 0.1):
         table.sensor_hit_t[1, 3] = t
