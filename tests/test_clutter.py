@@ -82,9 +82,10 @@ def _count(case: tuple[int, str], trials: int = 40) -> tuple[int, int, int]:
 def test_board_and_shelf_tops_between_people_are_fewer_people() -> None:
     """Seeds 4-7 (not looked at while developing), Kinect v2 and RealSense.
 
-    The detector before the cap-shape test made 9 + 29 false people here; this one
-    makes 7 + 16, and finds the same people. It does not remove them all: the end of a
-    deep shelf seen end-on, or a board edge blurred by stereo noise at 6 m, still passes
+    The detector before the cap-shape test made 9 + 29 false people here; with it, 7 +
+    16; with shoulders asked of every crown-like cap, 5 + 8, and it finds the same
+    people. It does not remove them all: a cap right at a shelf's corner, where what
+    lies around it at shoulder reach is the floor or the people in front, still passes
     as a head now and then.
     """
     cases = [(seed, kind) for kind in ("kinect2", "realsense") for seed in range(4, 8)]
@@ -92,7 +93,36 @@ def test_board_and_shelf_tops_between_people_are_fewer_people() -> None:
     false, found, wanted = totals.sum(axis=0)
     assert wanted >= 300
     assert found == wanted  # no real person lost
-    assert false <= 26, totals
+    assert false <= 13, totals
+
+
+def _crown(around: float) -> np.ndarray:
+    """A 0.06 m height map: a crown 0.18 m across at 1.7 m, ``around`` elsewhere."""
+    top = np.full((21, 21), around)
+    top[_RING2 <= 2] = 1.70
+    top[_RING2 == 0] = 1.72
+    return top
+
+
+_II, _JJ = np.mgrid[-10:11, -10:11]
+_RING2 = _II * _II + _JJ * _JJ  # squared distance from the peak, in cells
+_SHOULDERS = (_RING2 >= 2.5**2) & (_RING2 <= 5**2)  # 0.15-0.3 m from the peak
+
+
+def test_a_crown_is_a_head_only_with_shoulders_below_it() -> None:
+    clusterer = HeadClusterer(cell_m=0.06)
+    assert clusterer._is_head(_crown(1.45), 10, 10)  # shoulders 0.27 m lower
+    assert clusterer._is_head(_crown(np.nan), 10, 10)  # the body hidden: no say
+    # the top edge of a shelf seen between people: a crown-sized cap, and beside it at
+    # shoulder reach, a few cells of the same edge at its level, the rest hidden
+    edge = _crown(np.nan)
+    edge[_SHOULDERS & (_JJ >= 3) & (np.abs(_II) <= 1)] = 1.70
+    assert not clusterer._is_head(edge, 10, 10)
+    # the ring is judged by its median: a neighbour's shoulder at the peak's level on
+    # one side does not turn a head into a board
+    top = _crown(1.45)
+    top[_SHOULDERS & (_JJ >= 3) & (np.abs(_II) <= 1)] = 1.70
+    assert clusterer._is_head(top, 10, 10)
 
 
 def _cap(cells: list[tuple[int, int]]) -> str:

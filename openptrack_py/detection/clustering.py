@@ -118,7 +118,16 @@ class HeadClusterer:
     CAP_REACH_M = 0.3
     """Farthest a head's cap may reach from its peak."""
     CROWN_CELLS_FACTOR = 1.5
-    """A cap of more cells than this many head crowns must show shoulders around it."""
+    """A cap of more cells than this many head crowns is a head only with shoulders
+    :attr:`CAP_DEPTH_M` below it."""
+    SHOULDER_DROP_M = 0.10
+    """Least depth, below a crown-like cap, of what is seen around it at shoulder reach.
+
+    From the top of the head to the shoulders is about 0.3 m in adults (stature minus
+    acromial height in anthropometric surveys such as ANSUR) and about 0.2 m in small
+    children, whose heads are larger for their size; half the smaller figure allows
+    for a slouch and a raised shoulder. The top edge of a board or the front edge of a
+    shelf seen over people's heads is level with its surroundings."""
     CAP_LINE_M = 0.3
     """A cap longer than this ..."""
     CAP_ELONGATION = 2.5
@@ -302,11 +311,15 @@ class HeadClusterer:
 
         The cap of a head — the connected cells within :attr:`CAP_DEPTH_M` of the peak —
         is about as wide as a head; the cap of a wall, a table or a cabinet runs on. A
-        crown-like cap (:meth:`_cap_shape`) up to :attr:`CAP_REACH_M` from the peak is a
-        head, a line never is; a larger one, or one up to twice that far (depth
-        noise blurs far heads into their shoulders), a head only if the ring 0.15-0.3 m
-        around the peak lies, by its median, :attr:`CAP_DEPTH_M` lower (shoulders);
-        anything larger is not a head; so is a peak with many cells at its level around
+        line never is a head. What is seen in the ring 0.15-0.3 m around the peak (the
+        shoulders') tells the rest: a crown-like cap (:meth:`_cap_shape`) up to
+        :attr:`CAP_REACH_M` from the peak is a head unless that ring lies, by its median,
+        less than :attr:`SHOULDER_DROP_M` below the peak (the top edge of a board or a
+        shelf seen over people is level with its surroundings; a ring with nothing seen
+        in it, a body hidden below the head, says nothing); a larger cap, or one up to
+        twice that far (depth noise blurs far heads into their shoulders), is a head
+        only if the ring lies :attr:`CAP_DEPTH_M` lower;
+        anything larger is not a head; nor is a peak with many cells at its level around
         it (more than :attr:`LEVEL_CELLS_FACTOR` head crowns). ``top`` has single-cell
         holes filled.
         """
@@ -328,14 +341,16 @@ class HeadClusterer:
         shape = self._cap_shape(ci, cj)
         if shape == "line":
             return False
-        if far <= reach * reach and shape == "crown":
-            return True
         if far > 4 * reach * reach:
             return False
         r1 = 0.5 * self.heads_minimum_distance_m / self.cell_m
         r2 = self.heads_minimum_distance_m / self.cell_m
         ring = (d2 >= r1 * r1) & (d2 <= r2 * r2) & np.isfinite(window) & (window <= peak)
-        return bool(ring.any() and np.median(window[ring]) < peak - self.CAP_DEPTH_M)
+        drop = peak - np.median(window[ring]) if ring.any() else None
+        if far <= reach * reach and shape == "crown":
+            # nothing seen around it (a body hidden below the head) says nothing
+            return drop is None or drop > self.SHOULDER_DROP_M
+        return drop is not None and drop > self.CAP_DEPTH_M
 
     def _summarise(self, xyz: np.ndarray, point_blob: np.ndarray, cell_blob: np.ndarray) -> Blobs:
         """Per-blob statistics, then the size tests; blobs renumbered from 0."""
