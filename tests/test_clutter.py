@@ -96,17 +96,17 @@ def test_board_and_shelf_tops_between_people_are_fewer_people() -> None:
     assert false <= 13, totals
 
 
+_II, _JJ = np.mgrid[-10:11, -10:11]
+_RING2 = _II * _II + _JJ * _JJ  # squared distance from the peak, in cells
+_SHOULDERS = (_RING2 >= 2.5**2) & (_RING2 <= 5**2)  # 0.15-0.3 m from the peak
+
+
 def _crown(around: float) -> np.ndarray:
     """A 0.06 m height map: a crown 0.18 m across at 1.7 m, ``around`` elsewhere."""
     top = np.full((21, 21), around)
     top[_RING2 <= 2] = 1.70
     top[_RING2 == 0] = 1.72
     return top
-
-
-_II, _JJ = np.mgrid[-10:11, -10:11]
-_RING2 = _II * _II + _JJ * _JJ  # squared distance from the peak, in cells
-_SHOULDERS = (_RING2 >= 2.5**2) & (_RING2 <= 5**2)  # 0.15-0.3 m from the peak
 
 
 def test_a_crown_is_a_head_only_with_shoulders_below_it() -> None:

@@ -318,10 +318,9 @@ class HeadClusterer:
         shelf seen over people is level with its surroundings; a ring with nothing seen
         in it, a body hidden below the head, says nothing); a larger cap, or one up to
         twice that far (depth noise blurs far heads into their shoulders), is a head
-        only if the ring lies :attr:`CAP_DEPTH_M` lower;
-        anything larger is not a head; nor is a peak with many cells at its level around
-        it (more than :attr:`LEVEL_CELLS_FACTOR` head crowns). ``top`` has single-cell
-        holes filled.
+        only if the ring lies :attr:`CAP_DEPTH_M` lower; anything larger is not a head;
+        nor is a peak with many cells at its level around it (more than
+        :attr:`LEVEL_CELLS_FACTOR` head crowns). ``top`` has single-cell holes filled.
         """
         reach = self.CAP_REACH_M / self.cell_m
         span = int(np.ceil(2 * reach)) + 1
