@@ -13,7 +13,8 @@ The roster check (``classroom``): everyone is registered from the first
 the childcare tracking paper's "children registration"), then the run is tracked again
 from the start with that roster, and the share of frames in which each person matched to
 a track carries their own name, from 2 s after they are first in view, is counted, as
-well as frames in which one name is on two tracks.
+well as the share in which it carries another's name and frames in which one name is on
+two tracks.
 
 Prints one JSON line per run and a markdown table, writes ``docs/identity.json`` and
 ``docs/identity.png``::
@@ -93,12 +94,12 @@ def run_one(job: tuple[str, int, bool, float | None, bool]) -> dict[str, object]
 
 
 class _NameLog:
-    """Per scored frame: is each person's matched track named after them?"""
+    """Per scored frame: is each person's matched track named after them, or another?"""
 
     def __init__(self, feed: TrackerFeed) -> None:
         self.feed = feed
         self.first_seen: dict[int, float] = {}
-        self.right = self.judged = self.doubled = 0
+        self.right = self.wrong = self.judged = self.doubled = 0
 
     def __call__(self, t: float, truth: GroundTruthFrame, hyp: Hypotheses | None) -> None:
         latest = self.feed._latest
@@ -125,7 +126,9 @@ class _NameLog:
                 continue
             self.judged += 1
             c = match.get(k)
-            self.right += c is not None and names.get(int(hyp.ids[c])) == f"p{p.id}"
+            name = names.get(int(hyp.ids[c])) if c is not None else None
+            self.right += name == f"p{p.id}"
+            self.wrong += bool(name) and name != f"p{p.id}"
 
 
 def _register(seed: int, embeddings: bool) -> Roster:
@@ -178,6 +181,7 @@ def run_roster(job: tuple[int, float | None, bool]) -> dict[str, object]:
         "embeddings": embeddings,
         "registered": len(roster),
         "right_name": round(log.right / max(log.judged, 1), 4),
+        "wrong_name": round(log.wrong / max(log.judged, 1), 4),
         "frames_with_a_name_twice": log.doubled,
     }
 
@@ -277,6 +281,7 @@ def main(argv: list[str] | None = None) -> None:
     for r in rows:
         if r["scenario"] == "classroom-roster":
             print(f"roster seed {r['seed']}: right name {r['right_name']:.3f}, "
+                  f"another's name {r['wrong_name']:.3f}, "
                   f"frames with a name twice {r['frames_with_a_name_twice']}")  # fmt: skip
     if not args.quick:
         args.out.write_text(

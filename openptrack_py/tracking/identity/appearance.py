@@ -19,9 +19,12 @@
   first ``reid_window_s``; a link it contradicts is undone and the identity goes back to
   the pool.
 * **Names** (the paper's registered children, v2's named faces): evidence for each
-  registered person accumulates the same way; names go to tracks one-to-one by a
-  Hungarian assignment over the evidence, with hysteresis, so no name is ever on two
-  tracks at once.
+  registered person accumulates the same way (bounded by shifting a track's evidence
+  down as a whole, so its margins between names survive); a name needs ``link_margin``
+  over the track's best other name (v2 normalises its face posteriors over all
+  registered faces for the same reason: registered lookalikes leave a track unnamed,
+  not named by a coin toss) and goes to tracks one-to-one by a Hungarian assignment
+  over the evidence, with hysteresis, so no name is ever on two tracks at once.
 
 All state is per track id, in arrays (:class:`~.models.TrackModels`), and is
 snapshotted for the tracker's late-batch replay and its checkpoint.
@@ -426,7 +429,11 @@ class AppearanceIdentity:
             llr = self._pair_llr(seen, _Side(sig, sig_ok, emb, emb_ok.astype(float)))
             cap = 4.0 * self.cfg.link_evidence
             np.add.at(m.name_ev, mrows, rho * llr)
-            np.clip(m.name_ev, -cap, cap, out=m.name_ev)
+            # bounded, so a track that changed person can be renamed; a row is shifted
+            # down as a whole (not clipped) so its margins between names survive
+            over = np.maximum(m.name_ev.max(axis=1, initial=0.0) - cap, 0.0)
+            m.name_ev -= over[:, None]
+            np.maximum(m.name_ev, -cap, out=m.name_ev)
         young = (t - m.born[mrows] <= self.cfg.reid_window_s) & (
             m.own[mrows] | np.isin(m.ids[mrows], list(self.links))
         )
@@ -581,13 +588,19 @@ class AppearanceIdentity:
         if not len(rows):
             self.named = {}
             return
-        ev = m.name_ev[rows].copy()
+        raw = m.name_ev[rows]
+        ev = raw.copy()
         ids = m.ids[rows]
+        # a name needs ``link_margin`` over the track's best other name (lookalikes in
+        # the roster leave the track unnamed rather than named by a coin toss); a held
+        # name is kept until another overtakes it
+        need = np.full(ev.shape, self.cfg.link_margin)
         for k, tid in enumerate(ids.tolist()):
             held = self.named.get(tid)
             if held is not None and held < ev.shape[1]:
                 ev[k, held] += self.cfg.link_margin
-        eligible = ev >= self.cfg.link_evidence
+                need[k, held] = 0.0
+        eligible = (ev >= self.cfg.link_evidence) & (raw - _rival(raw) >= need)
         named: dict[int, int] = {}
         if eligible.any():
             r, c = linear_sum_assignment(np.where(eligible, -ev, 1e6))
@@ -655,3 +668,17 @@ def _looks_side(looks: Looks, cols: np.ndarray, has_sig: np.ndarray | None = Non
         looks.embedding[cols],
         looks.embedding_weight[cols],
     )
+
+
+def _rival(ev: np.ndarray) -> np.ndarray:
+    """Per entry of ``ev (tracks, names)``: the row's best evidence for another name (>= 0).
+
+    0 stands for a person who is not registered at all.
+    """
+    if ev.shape[1] < 2:
+        return np.zeros_like(ev)
+    order = np.argsort(ev, axis=1)
+    first = np.take_along_axis(ev, order[:, -1:], axis=1)
+    second = np.take_along_axis(ev, order[:, -2:-1], axis=1)
+    best_other = np.where(np.arange(ev.shape[1])[None, :] == order[:, -1:], second, first)
+    return np.maximum(best_other, 0.0)
