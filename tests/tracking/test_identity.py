@@ -162,8 +162,12 @@ def test_appearance_never_admits_a_pair_the_gate_rejects() -> None:
 # ------------------------------------------------------------- re-identification
 
 
-def _leave_and_return(tracker, rng, t, k0, colour, where=(6.0, 6.0), gone_s=20.0):
-    """The person of ``colour`` comes back after ``gone_s`` while the others stay."""
+def _leave_and_return(tracker, rng, t, k0, colour, where=(6.0, 6.0), gone_s=20.0, colour_every=1):
+    """The person of ``colour`` comes back after ``gone_s`` while the others stay.
+
+    Back, their colours are seen in one frame of ``colour_every``; the other frames
+    carry only a face embedding, which says nothing yet (no faces were seen before).
+    """
     out = None
     k = k0
     # the others keep walking while the person is away; the person is absent
@@ -177,7 +181,8 @@ def _leave_and_return(tracker, rng, t, k0, colour, where=(6.0, 6.0), gone_s=20.0
     for j in range(120):
         tt = t + j * FRAME
         dets = tuple(person(1.0, 2.0 + 2.5 * i, look(3 * i + 1, rng)) for i in (0, 2))
-        dets += (person(where[0] + 0.01 * j, where[1], look(colour, rng), u=700),)
+        sig, face = (look(colour, rng), None) if j % colour_every == 0 else (None, _face(9, rng))
+        dets += (person(where[0] + 0.01 * j, where[1], sig, u=700, face=face),)
         out = tracker.step(batch(tt, dets, k))
         k += 1
     return out
@@ -194,6 +199,16 @@ def test_a_person_who_returns_gets_their_stable_id_back() -> None:
     assert back[0].id != before[4]  # a new track...
     assert back[0].stable_id == before[4]  # ...with the old identity
     assert tracker.identity.counters["reidentified"] == 1
+
+
+def test_frames_without_a_clean_colour_do_not_water_down_a_return() -> None:
+    rng = np.random.default_rng(5)
+    tracker = identity_tracker()
+    out, t = _warm_up(tracker, rng)
+    before = {round(tr.y): tr.stable_id for tr in out.tracks}
+    out = _leave_and_return(tracker, rng, t, 1000, colour=4, colour_every=4)
+    back = [tr for tr in out.tracks if tr.x > 5.0]
+    assert len(back) == 1 and back[0].stable_id == before[4]
 
 
 def test_a_stranger_does_not_take_a_pooled_identity() -> None:

@@ -106,7 +106,7 @@ class AppearanceIdentity:
         self.models = TrackModels()
         self.pool: tuple[PooledIdentity, ...] = ()
         self.links: dict[int, PooledIdentity] = {}
-        self.reid_ev: dict[int, dict[int, tuple[float, int]]] = {}
+        self.reid_ev: dict[int, dict[int, tuple[float, float]]] = {}
         self.named: dict[int, int] = {}
         self.apart: dict[tuple[int, int], float] = {}
         self.together: dict[tuple[int, int], float] = {}
@@ -450,6 +450,10 @@ class AppearanceIdentity:
         where = np.array([e.xy for e in entries])
         since = np.array([e.lost_at for e in entries])
         gap = np.linalg.norm(dets.xy[cols][:, None, :] - where[None, :, :], axis=2)
+        # an observation counts in the mean as much as it can say: a clean colour fully,
+        # a face alone by its weighted confidence (nothing before faces can be compared)
+        face_w = self.cfg.embedding_weight * seen.emb_w * self.face.ready
+        weight = np.where(has_sig, 1.0, np.minimum(face_w, 1.0)).tolist()
         reach = self.cfg.reid_max_speed_mps * np.maximum(t - since, 0.0) + self.cfg.reid_margin_m
         for k, r in enumerate(mrows.tolist()):
             ev = self.reid_ev.setdefault(int(m.ids[r]), {})
@@ -458,7 +462,7 @@ class AppearanceIdentity:
             ):
                 if ok:
                     total, n = ev.get(e.stable, (0.0, 0))
-                    ev[e.stable] = (total + value, n + 1)
+                    ev[e.stable] = (total + value, n + weight[k])
 
     # -------------------------------------------------------------- decisions
 
@@ -651,8 +655,11 @@ def _remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:
     return out
 
 
-def _mean(evidence: tuple[float, int] | None) -> float:
-    """Mean log-likelihood ratio of ``(sum, count)`` evidence (``-inf`` without any)."""
+def _mean(evidence: tuple[float, float] | None) -> float:
+    """Mean log-likelihood ratio of ``(sum, observations)`` evidence (``-inf`` without any).
+
+    Observations are weighted by what they can say (see ``_gather_evidence``).
+    """
     if not evidence:
         return -np.inf
     if evidence[1] < MIN_REID_OBSERVATIONS:
