@@ -21,10 +21,10 @@
 * **Names** (the paper's registered children, v2's named faces): evidence for each
   registered person accumulates the same way (bounded by shifting a track's evidence
   down as a whole, so its margins between names survive); a name needs ``link_margin``
-  over the track's best other name (v2 normalises its face posteriors over all
-  registered faces for the same reason: registered lookalikes leave a track unnamed,
-  not named by a coin toss) and goes to tracks one-to-one by a Hungarian assignment
-  over the evidence, with hysteresis, so no name is ever on two tracks at once.
+  over the track's best other name (as v2 weighs a face against every registered face,
+  not against a threshold alone: registered lookalikes leave a track unnamed, not named
+  by a coin toss) and goes to tracks one-to-one by a Hungarian assignment over the
+  evidence, with hysteresis, so no name is ever on two tracks at once.
 
 All state is per track id, in arrays (:class:`~.models.TrackModels`), and is
 snapshotted for the tracker's late-batch replay and its checkpoint.
