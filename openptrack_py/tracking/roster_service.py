@@ -5,8 +5,9 @@ access control already says who may send them): a
 :class:`~openptrack_py.messages.config_update.ConfigUpdate` whose ``set`` is
 ``{"roster": "add", "roster.name": NAME, "roster.track": ID}`` (or ``"remove"`` with a
 name, or ``"list"``; plain values, as every configuration request). The tracker
-captures the track's looks from its identity role, writes the roster file atomically and
-answers with the roster's people in the ack's ``config``
+captures the track's looks from its identity role, writes the roster file atomically,
+names that track at once (it is the person just registered) and answers with the
+roster's people in the ack's ``config``
 (``{"roster": [{"name", "observations", "added"}, ...]}``).
 
 The file is also watched: an edit by hand (or by another tool) is loaded at most
@@ -101,8 +102,10 @@ class RosterKeeper:
         if action not in ACTIONS:
             raise ConfigError(f"roster: expected an action, one of {', '.join(ACTIONS)}")
         roster = identity.roster
+        added = None
         if action == "add":
-            roster = roster.with_person(self._capture(identity, body))
+            added = self._capture(identity, body)
+            roster = roster.with_person(added)
         elif action == "remove":
             name = check_name(body.get("name"), "roster.name")
             try:
@@ -113,6 +116,8 @@ class RosterKeeper:
             save_roster(roster, self.path)
             self._mtime = self._stat()
             identity.set_roster(roster)
+        if added is not None:  # the person of that track is the one just named
+            identity.name_track(body["track"], added.name)
         return roster_listing(roster)
 
     def _capture(self, identity: AppearanceIdentity, body: dict) -> RosterEntry:

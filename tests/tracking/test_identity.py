@@ -23,6 +23,7 @@ from openptrack_py.tracking.identity import (
 )
 from openptrack_py.tracking.identity.likelihood import DistanceLikelihood, hellinger
 from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
+from openptrack_py.tracking.roster_service import RosterKeeper, roster_request
 from openptrack_py.tracking.state import Looks
 from tests.tracking.helpers import FRAME, T0
 
@@ -296,6 +297,32 @@ def test_a_lookalike_in_the_roster_leaves_the_track_unnamed_not_named_by_a_coin_
     # long enough for the evidence to reach its bound: bo's margin over the cousin
     # must survive it (clipping both names at the bound erased it)
     assert {round(tr.y): tr.identity for tr in out.tracks} == {2: None, 4: "bo", 7: "cy"}
+
+
+def test_lookalikes_registered_from_their_own_tracks_keep_their_names(tmp_path: Path) -> None:
+    rng = np.random.default_rng(12)
+    tracker = identity_tracker()
+    _warm_up(tracker, rng)
+    keeper = RosterKeeper(tmp_path / "roster.yaml")
+    uniform = 7  # ada and her twin dress alike (bo and cy are as before)
+
+    def step(t: float, k: int):
+        dets = tuple(
+            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(c, rng))
+            for i, c in enumerate((uniform, 4, uniform))
+        )
+        return tracker.step(batch(t, dets, k))
+
+    t0 = T0 + 300 * FRAME
+    for k in range(300):  # the tracks learn their new looks
+        out = step(t0 + k * FRAME, 300 + k)
+    by_y = {round(tr.y): tr.id for tr in out.tracks}
+    keeper.request(tracker.identity, roster_request("add", "ada", by_y[2]))
+    keeper.request(tracker.identity, roster_request("add", "twin", by_y[7]))
+    for k in range(600, 900):
+        out = step(T0 + k * FRAME, k)
+        names = {round(tr.y): tr.identity for tr in out.tracks}
+        assert names[2] == "ada" and names[7] == "twin"
 
 
 def test_roster_file_roundtrip_and_errors(tmp_path: Path) -> None:

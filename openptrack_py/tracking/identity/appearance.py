@@ -57,6 +57,8 @@ from openptrack_py.tracking.identity.roster import Roster
 from openptrack_py.tracking.neighbours import close_pairs
 from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
 
+NAME_EVIDENCE_BOUND = 4.0
+"""A track's evidence for a name stays within this many times ``link_evidence``."""
 MIN_REID_OBSERVATIONS = 10
 """Observations of a young track against a pooled identity before their mean counts."""
 DISTINCT_OBSERVATIONS = 10
@@ -129,6 +131,24 @@ class AppearanceIdentity:
             if (mapping == k).any()
         }
         self.roster = roster
+
+    def name_track(self, track_id: int, name: str) -> None:
+        """Someone says the live track ``track_id`` is the registered ``name``.
+
+        The track carries the name at once, with the most evidence a name can hold, and
+        keeps it until its looks come to favour another registered person; any other
+        track loses the name. A lookalike registered from their own track thus keeps
+        their name by continuity, where looks alone would leave both unnamed.
+        """
+        row = self.models.rows(np.array([track_id]))[0]
+        if row < 0 or name not in self.roster.names:
+            return
+        k = self.roster.names.index(name)
+        ev = self.models.name_ev
+        ev[:, k] = np.minimum(ev[:, k], 0.0)
+        ev[row, k] = NAME_EVIDENCE_BOUND * self.cfg.link_evidence
+        self.named = {tid: j for tid, j in self.named.items() if j != k}
+        self.named[int(track_id)] = k
 
     def looks_of(self, track_id: int) -> tuple[np.ndarray, float, np.ndarray] | None:
         """A live track's colour model, its observation count and embedding model."""
@@ -427,7 +447,7 @@ class AppearanceIdentity:
             sig, sig_ok = self.roster.references("signature", m.sig.shape[1])
             emb, emb_ok = self.roster.references("embedding", m.emb.shape[1])
             llr = self._pair_llr(seen, _Side(sig, sig_ok, emb, emb_ok.astype(float)))
-            cap = 4.0 * self.cfg.link_evidence
+            cap = NAME_EVIDENCE_BOUND * self.cfg.link_evidence
             np.add.at(m.name_ev, mrows, rho * llr)
             # bounded, so a track that changed person can be renamed; a row is shifted
             # down as a whole (not clipped) so its margins between names survive
