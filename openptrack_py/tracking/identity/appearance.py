@@ -132,6 +132,11 @@ class AppearanceIdentity:
         }
         self.roster = roster
 
+    @property
+    def _name_bound(self) -> float:
+        """The most evidence a track can hold for a name (and the least, negated)."""
+        return NAME_EVIDENCE_BOUND * self.cfg.link_evidence
+
     def name_track(self, track_id: int, name: str) -> None:
         """Someone says the live track ``track_id`` is the registered ``name``.
 
@@ -146,7 +151,7 @@ class AppearanceIdentity:
         k = self.roster.names.index(name)
         ev = self.models.name_ev
         ev[:, k] = np.minimum(ev[:, k], 0.0)
-        ev[row, k] = NAME_EVIDENCE_BOUND * self.cfg.link_evidence
+        ev[row, k] = self._name_bound
         self.named = {tid: j for tid, j in self.named.items() if j != k}
         self.named[int(track_id)] = k
 
@@ -447,13 +452,14 @@ class AppearanceIdentity:
             sig, sig_ok = self.roster.references("signature", m.sig.shape[1])
             emb, emb_ok = self.roster.references("embedding", m.emb.shape[1])
             llr = self._pair_llr(seen, _Side(sig, sig_ok, emb, emb_ok.astype(float)))
-            cap = NAME_EVIDENCE_BOUND * self.cfg.link_evidence
             np.add.at(m.name_ev, mrows, rho * llr)
             # bounded, so a track that changed person can be renamed; a row is shifted
-            # down as a whole (not clipped) so its margins between names survive
-            over = np.maximum(m.name_ev.max(axis=1, initial=0.0) - cap, 0.0)
-            m.name_ev -= over[:, None]
-            np.maximum(m.name_ev, -cap, out=m.name_ev)
+            # down as a whole (not clipped) so its margins between names survive (only
+            # the rows just updated can have left the bounds)
+            cap, touched = self._name_bound, np.unique(mrows)
+            ev = m.name_ev[touched]
+            ev -= np.maximum(ev.max(axis=1, initial=0.0) - cap, 0.0)[:, None]
+            m.name_ev[touched] = np.maximum(ev, -cap)
         young = (t - m.born[mrows] <= self.cfg.reid_window_s) & (
             m.own[mrows] | np.isin(m.ids[mrows], list(self.links))
         )
