@@ -22,6 +22,7 @@ from openptrack_py.tracking.identity import (
     save_roster,
 )
 from openptrack_py.tracking.identity.likelihood import DistanceLikelihood, hellinger
+from openptrack_py.tracking.identity.models import PooledIdentity
 from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
 from openptrack_py.tracking.roster_service import RosterKeeper, roster_request
 from openptrack_py.tracking.state import Looks
@@ -570,3 +571,53 @@ def test_a_link_needs_more_evidence_among_more_look_alikes_and_rarer_returns() -
     assert one[0, 1] == 0.0  # out of reach
     both = link_posterior(np.array([[3.0, 3.0], [-1.0, 0.5]]), 0.7)
     assert (both.sum(axis=1) <= 1.0).all()
+
+
+def test_names_survive_a_late_batch_replay_from_before_the_roster_changed(
+    tmp_path: Path,
+) -> None:
+    """A batch arriving late just after ``roster add`` replays from a snapshot taken
+    before it: the name said by hand must be said again, and the evidence follow the
+    roster by name (it was zeroed, and the lookalikes left unnamed for good)."""
+    rng = np.random.default_rng(12)
+    tracker = identity_tracker()
+    _warm_up(tracker, rng)
+    keeper = RosterKeeper(tmp_path / "roster.yaml")
+
+    def dets(t: float) -> tuple[Detection, ...]:
+        return tuple(
+            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(c, rng))
+            for i, c in enumerate((7, 4, 7))  # the first and the last dress alike
+        )
+
+    for k in range(300, 600):
+        out = tracker.step(batch(T0 + k * FRAME, dets(T0 + k * FRAME), k))
+    by_y = {round(tr.y): tr.id for tr in out.tracks}
+    keeper.request(tracker.identity, roster_request("add", "ada", by_y[2]))
+    keeper.request(tracker.identity, roster_request("add", "twin", by_y[7]))
+    late = T0 + 590.5 * FRAME  # another sensor's frame from before the requests
+    tracker.step(batch(late, dets(late), 0, sensor="s1"))
+    assert tracker.counters["late_applied"] == 1
+    for k in range(600, 700):
+        out = tracker.step(batch(T0 + k * FRAME, dets(T0 + k * FRAME), k))
+        names = {round(tr.y): tr.identity for tr in out.tracks}
+        assert names[2] == "ada" and names[7] == "twin"
+
+
+def test_a_replay_after_a_roster_change_keeps_every_name_column_in_step() -> None:
+    """Pooled identities from a snapshot taken under the old roster follow it by name
+    (their evidence kept the old width, which a link cannot combine with a track's)."""
+    rng = np.random.default_rng(13)
+    tracker = identity_tracker()
+    _warm_up(tracker, rng)
+    identity = tracker.identity
+    lost = PooledIdentity(
+        stable=99, sig=np.zeros(BINS), sig_n=0.0, emb=np.zeros(0), emb_w=0.0,
+        xy=np.zeros(2), lost_at=T0, name_ev=np.zeros(0),
+    )  # fmt: skip
+    identity.pool += (lost,)
+    before = identity.snapshot()
+    identity.set_roster(_roster_of(tracker))
+    identity.restore(before)
+    assert identity.models.name_ev.shape[1] == 3
+    assert [len(e.name_ev) for e in identity.pool] == [3]

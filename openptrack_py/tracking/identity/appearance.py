@@ -36,6 +36,7 @@ the next thing to move into a module of their own.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -115,14 +116,20 @@ class AppearanceIdentity:
         self.returns = ReturnRate()
         self.roster = Roster()
         self.counters = {"reidentified": 0, "unlinked": 0}
+        self.told: list[tuple[int, str]] = []  # name_track's calls, in order
         self.set_roster(roster or Roster())
 
     # ------------------------------------------------------------------ roster
 
     def set_roster(self, roster: Roster) -> None:
         """Use ``roster`` from now on (evidence for names kept by name)."""
-        old = {name: k for k, name in enumerate(self.roster.names)}
-        mapping = np.array([old.get(name, -1) for name in roster.names], dtype=np.int64)
+        before, self.roster = self.roster.names, roster
+        self._follow_roster(before)
+
+    def _follow_roster(self, before: Sequence[str]) -> None:
+        """Move name evidence kept for the names ``before`` to the roster's names."""
+        old = {name: k for k, name in enumerate(before)}
+        mapping = np.array([old.get(name, -1) for name in self.roster.names], dtype=np.int64)
         self.models.resize_names(mapping)
         self.pool = tuple(replace(e, name_ev=_remap(e.name_ev, mapping)) for e in self.pool)
         self.named = {
@@ -130,7 +137,6 @@ class AppearanceIdentity:
             for tid, k in self.named.items()
             if (mapping == k).any()
         }
-        self.roster = roster
 
     @property
     def _name_bound(self) -> float:
@@ -143,8 +149,13 @@ class AppearanceIdentity:
         The track carries the name at once, with the most evidence a name can hold, and
         keeps it until its looks come to favour another registered person; any other
         track loses the name. A lookalike registered from their own track thus keeps
-        their name by continuity, where looks alone would leave both unnamed.
+        their name by continuity, where looks alone would leave both unnamed. A
+        late-batch replay from before this moment says it again.
         """
+        self.told.append((int(track_id), name))
+        self._pin(int(track_id), name)
+
+    def _pin(self, track_id: int, name: str) -> None:
         row = self.models.rows(np.array([track_id]))[0]
         if row < 0 or name not in self.roster.names:
             return
@@ -153,7 +164,7 @@ class AppearanceIdentity:
         ev[:, k] = np.minimum(ev[:, k], 0.0)
         ev[row, k] = self._name_bound
         self.named = {tid: j for tid, j in self.named.items() if j != k}
-        self.named[int(track_id)] = k
+        self.named[track_id] = k
 
     def looks_of(self, track_id: int) -> tuple[np.ndarray, float, np.ndarray] | None:
         """A live track's colour model, its observation count and embedding model."""
@@ -645,7 +656,7 @@ class AppearanceIdentity:
             self.models.copy(), self.pool, dict(self.links),
             {k: dict(v) for k, v in self.reid_ev.items()}, dict(self.named),
             self.colour.state(), self.face.state(), dict(self.apart), self.returns.state(),
-            dict(self.together),
+            dict(self.together), tuple(self.roster.names), len(self.told),
         )  # fmt: skip
 
     def restore(self, state: tuple) -> None:
@@ -661,7 +672,11 @@ class AppearanceIdentity:
         self.reid_ev = {k: dict(v) for k, v in reid_ev.items()}
         self.colour.restore(colour)
         self.face.restore(face)
-        if self.models.name_ev.shape[1] != len(self.roster):
+        if len(rest) > 2:  # the roster may have changed since: names follow by name
+            self._follow_roster(rest[2])
+            for track_id, name in self.told[rest[3] :]:  # said since: said again
+                self._pin(track_id, name)
+        elif self.models.name_ev.shape[1] != len(self.roster):
             self.models.name_ev = np.zeros((len(self.models), len(self.roster)))
             self.named = {}
 
