@@ -82,6 +82,7 @@ _RANGES: dict[str, tuple[float, float]] = {
     "decoy_detection_probability": (0.0, 1.0),
     "clock_offset_s": (0.0, 10.0),
     "latency_jitter_s": (0.0, 1.0),
+    "gait_bob_m": (0.0, 0.2),
     "frame_drop_probability": (0.0, 1.0),
     "merge_distance_m": (0.0, 2.0),
     "split_duration_s": (0.0, 10.0),
@@ -91,6 +92,7 @@ _PAIR_RANGES: dict[str, tuple[float, float]] = {
     "decoy_confidence": (0.0, 1.0),
     "calibration_offset_m": (0.0, 2.0),
     "calibration_yaw_deg": (0.0, 20.0),
+    "floor_tilt_deg": (0.0, 10.0),
 }
 
 
@@ -166,6 +168,14 @@ class NoiseProfile:
         Least standard deviation of the capture-to-publication delay, seconds.
     frame_drop_probability : float
         Least probability that a whole frame is lost.
+    floor_tilt_deg : (float, float)
+        Range of the tilt of each sensor's floor plane, degrees (direction random):
+        measured heights are off by its tangent times the distance from the sensor
+        (:mod:`~openptrack_py.sim.height_error`).
+    gait_bob_m : float
+        How far a walking person's measured height rises and falls about its mean, at
+        normal walking speed: lowest at each step's double support, near the standing
+        height in mid-stance.
     merge_distance_m : float
         People closer than this (centre to centre) come out as one detection.
     split_probability : float, optional
@@ -208,6 +218,8 @@ class NoiseProfile:
     clock_offset_s: float = 0.0
     latency_jitter_s: float = 0.0
     frame_drop_probability: float = 0.0
+    floor_tilt_deg: tuple[float, float] = (0.0, 0.0)
+    gait_bob_m: float = 0.0
     merge_distance_m: float = 0.3
     split_probability: float | None = None
     split_duration_s: float = 0.0
@@ -428,6 +440,12 @@ REALISTIC = NoiseProfile(
     clock_offset_s=0.02,
     latency_jitter_s=0.015,
     frame_drop_probability=0.01,
+    # Heights (sim/height_error.py): a walking person's head rises and falls about 5 cm
+    # peak to peak per step (Saunders, Inman and Eberhart 1953); each sensor measures
+    # from a floor plane fitted to its own points, taken to be good to 0.25-1 degree
+    # (our reading, not a published figure: 1 degree is 7 cm of height at 4 m).
+    floor_tilt_deg=(0.25, 1.0),
+    gait_bob_m=0.025,
     # Merges: OpenPTrack's detector clusters points 0.12 m apart into one body and
     # splits a cluster only at heads >= 0.3 m apart (heads_minimum_distance); people
     # walking shoulder to shoulder are about 0.45 m apart centre to centre.
@@ -457,6 +475,7 @@ HARSH = dataclasses.replace(
     clock_offset_s=0.1,
     latency_jitter_s=0.04,
     frame_drop_probability=0.03,
+    floor_tilt_deg=(0.5, 2.0),
     merge_distance_m=0.6,
     split_probability=0.01,
     split_duration_s=0.6,

@@ -57,6 +57,7 @@ from openptrack_py.sim.false_positives import (
     SplitBlobs,
     TransientFalsePositives,
 )
+from openptrack_py.sim.height_error import HeightError
 from openptrack_py.sim.profiles import (
     FALSE_POSITIVE_TYPE_FACTOR,
     IDEAL,
@@ -174,6 +175,7 @@ class SensorModel(SensorView):
         # true world -> camera -> world as the sensor believes it to be placed
         self.reported_from_world = believed @ self.camera_from_world
         self._centroid: CentroidError | None = None
+        self._height: HeightError | None = None
         self._transients: TransientFalsePositives | None = None
         self._decoys: DecoySightings | None = None
         self._splits: SplitBlobs | None = None
@@ -191,7 +193,11 @@ class SensorModel(SensorView):
             )
         if p == IDEAL:
             return
-        centroid_rng, transient_rng, decoy_rng, split_rng, self._extra_rng = rng.spawn(5)
+        # the height generator is spawned last, so the others draw as they did before it
+        spawned = rng.spawn(6)
+        centroid_rng, transient_rng, decoy_rng, split_rng, self._extra_rng = spawned[:5]
+        if p.floor_tilt_deg != (0.0, 0.0) or p.gait_bob_m > 0:
+            self._height = HeightError(p, self.origin[:2], spawned[5])
         if p.centroid_error:
             self._centroid = CentroidError(p, spec.noise, centroid_rng)
         if p.false_positives_per_frame > 0:
@@ -279,6 +285,10 @@ class SensorModel(SensorView):
         z = snap.height[detected] * (0.55 + 0.15 * (1.0 - frac))
         z = z + rng.normal(0.0, 0.03, len(detected))
         h = snap.height[detected] + rng.normal(0.0, noise.height_sigma_m, len(detected))
+        if self._height is not None:
+            h += self._height.sample(
+                snap.t, snap.ids[detected], snap.pos[detected], snap.vel[detected]
+            )
         far = np.maximum(distance[detected] - kind.reliable_range_m, 0.0)
         conf = 0.55 + 0.35 * frac - 0.04 * far + rng.normal(0.0, 0.06, len(detected))
         for j, row in enumerate(detected):
