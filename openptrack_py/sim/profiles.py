@@ -27,6 +27,7 @@ named profile: :meth:`NoiseProfile.with_embeddings` or ``"<name>+embeddings"`` h
 per-sensor figures (calibration offset, clock offset, jitter, drops, misses) drawn from
 the scenario seed; the per-frame mechanisms live in
 :mod:`~openptrack_py.sim.centroid_error` and :mod:`~openptrack_py.sim.false_positives`.
+The module is long because every figure of the named profiles carries its evidence.
 """
 
 from __future__ import annotations
