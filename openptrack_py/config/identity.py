@@ -28,6 +28,13 @@ class IdentityConfig(StrictModel):
     embedding_weight : float
         Weight of an identity embedding's (``face``) log-likelihood ratio, multiplied by
         the embedding's own confidence.
+    height_weight : float
+        Weight of the height's log-likelihood ratio (a soft biometric: how tall a person
+        is tells little alone, but adds to colour what colour cannot tell apart); each
+        sensor's height error is learned and removed first. 0 (the default) leaves
+        heights out: on the ``realistic`` held-out runs 1 raised IDF1 on ``occlusions``,
+        ``uniforms``, ``installation`` and ``classroom`` but kept fewer returns on
+        ``reentry`` (``docs/evaluation.md``).
     max_llr : float
         Largest absolute log-likelihood ratio one observation contributes.
     min_observations : int
@@ -92,6 +99,7 @@ class IdentityConfig(StrictModel):
     enabled: bool = False
     appearance_weight: float = Field(1.0, ge=0.0, le=10.0)
     embedding_weight: float = Field(1.0, ge=0.0, le=10.0)
+    height_weight: float = Field(0.0, ge=0.0, le=10.0)
     max_llr: float = Field(3.0, gt=0.0, le=20.0)
     min_observations: int = Field(3, ge=1, le=1000)
     model_rate: float = Field(0.01, gt=0.0, le=1.0)

@@ -21,6 +21,7 @@ from openptrack_py.tracking.identity import (
     load_roster,
     save_roster,
 )
+from openptrack_py.tracking.identity.heights import HeightBias
 from openptrack_py.tracking.identity.likelihood import DistanceLikelihood, hellinger
 from openptrack_py.tracking.identity.models import PooledIdentity
 from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
@@ -40,10 +41,10 @@ def look(hue_bin: int, rng: np.random.Generator, noise: float = 0.15) -> tuple[i
     return tuple(np.round(h / h.sum() * 255).astype(int).tolist())
 
 
-def person(x, y, sig, conf=0.9, u=None, face=None):
+def person(x, y, sig, conf=0.9, u=None, face=None, height=1.75):
     u = int(100 + 60 * x) if u is None else u
     return Detection(
-        x=float(x), y=float(y), z=0.9, height=1.75, confidence=conf, distance=3.0,
+        x=float(x), y=float(y), z=0.9, height=float(height), confidence=conf, distance=3.0,
         bbox=(u, 50, 40, 150), appearance=sig, face=face,
     )  # fmt: skip
 
@@ -53,7 +54,7 @@ def batch(t, dets, k, sensor="s0"):
 
 
 def identity_tracker(**identity) -> object:
-    cfg = TrackerConfig(identity={"enabled": True, **identity})
+    cfg = TrackerConfig(identity={"enabled": True, "height_weight": 1.0, **identity})
     return build_tracker(cfg)
 
 
@@ -211,6 +212,48 @@ def test_frames_without_a_clean_colour_do_not_water_down_a_return() -> None:
     out = _leave_and_return(tracker, rng, t, 1000, colour=4, colour_every=4)
     back = [tr for tr in out.tracks if tr.x > 5.0]
     assert len(back) == 1 and back[0].stable_id == before[4]
+
+
+def _alike_but_not_as_tall(tracker, rng, back_height, **kw) -> tuple[int, int]:
+    """Three people dressed alike, 1.55, 1.75 and 1.95 m tall; the middle one leaves
+    and someone ``back_height`` tall comes back. Returns the middle one's stable id and
+    the stable id of whoever came back."""
+    heights = (1.55, 1.75, 1.95)
+
+    def frame(t, k, who, extra=()):
+        dets = tuple(
+            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(7, rng),
+                   height=heights[i] + rng.normal(0.0, 0.02))
+            for i in who
+        ) + extra  # fmt: skip
+        return tracker.step(batch(t, dets, k))
+
+    for k in range(300):
+        out = frame(T0 + k * FRAME, k, (0, 1, 2))
+    before = min(out.tracks, key=lambda tr: abs(tr.y - 4.5)).stable_id
+    t = T0 + 300 * FRAME
+    for k in range(120):  # 20 s away
+        out = frame(t + 5 * k * FRAME, 300 + k, (0, 2))
+    t += 600 * FRAME
+    for k in range(120):
+        back = person(6.0 + 0.01 * k, 6.0, look(7, rng), u=700,
+                      height=back_height + rng.normal(0.0, 0.02))  # fmt: skip
+        out = frame(t + k * FRAME, 420 + k, (0, 2), (back,))
+    return before, next(tr.stable_id for tr in out.tracks if tr.x > 5.0)
+
+
+def test_height_brings_back_a_person_whose_colours_tell_nothing() -> None:
+    before, back = _alike_but_not_as_tall(identity_tracker(), np.random.default_rng(21), 1.75)
+    assert back == before
+    # without heights, colours alone cannot say it is them: a new identity
+    tracker = identity_tracker(height_weight=0.0)
+    before, back = _alike_but_not_as_tall(tracker, np.random.default_rng(21), 1.75)
+    assert back != before
+
+
+def test_someone_of_another_height_does_not_take_a_pooled_identity() -> None:
+    before, back = _alike_but_not_as_tall(identity_tracker(), np.random.default_rng(22), 1.62)
+    assert back != before
 
 
 def test_a_stranger_does_not_take_a_pooled_identity() -> None:
@@ -392,6 +435,24 @@ def test_identity_is_part_of_the_checkpoint(tmp_path: Path) -> None:
     restarted.restore_state(checkpoint.table, checkpoint.time, checkpoint.roles)
     np.testing.assert_array_equal(restarted.identity.models.sig, tracker.identity.models.sig)
     assert restarted.identity.colour.ready
+
+
+def test_a_checkpoint_from_before_heights_restores_without_them() -> None:
+    import pickle
+
+    rng = np.random.default_rng(14)
+    tracker = identity_tracker()
+    _warm_up(tracker, rng)
+    old = tracker.identity.snapshot()
+    models = old[0]
+    del models.__dict__["hgt"], models.__dict__["hgt_n"]  # as an older version wrote them
+    restarted = identity_tracker()
+    restarted.identity.restore(pickle.loads(pickle.dumps(old[:10])))
+    m = restarted.identity.models
+    assert m.hgt.shape == m.hgt_n.shape == (len(m),) and not m.hgt_n.any()
+    assert not restarted.identity.stature.ready
+    _warm_up(restarted, rng, frames=60, k0=300, t0=T0 + 300 * FRAME)  # and it runs on
+    assert restarted.identity.models.hgt_n.max() > 0
 
 
 def test_identity_off_is_the_default_and_costs_nothing() -> None:
@@ -621,3 +682,49 @@ def test_a_replay_after_a_roster_change_keeps_every_name_column_in_step() -> Non
     identity.restore(before)
     assert identity.models.name_ev.shape[1] == 3
     assert [len(e.name_ev) for e in identity.pool] == [3]
+
+
+def test_each_sensors_height_error_is_learned_as_a_plane() -> None:
+    rng = np.random.default_rng(23)
+    bias = HeightBias()
+    xy = rng.uniform(0.0, 6.0, (3000, 2))
+    error = 0.04 + 0.01 * xy[:, 0] - 0.005 * xy[:, 1]  # a floor tilted by about 0.6 degree
+    heights = 1.7 + error + rng.normal(0.0, 0.03, len(xy))
+    assert (bias.correct("a", xy[:5], heights[:5]) == heights[:5]).all()  # nothing learned
+    for k in range(0, len(xy), 30):  # batch by batch, against a model of 1.7 m
+        bias.learn("a", xy[k : k + 30], heights[k : k + 30] - 1.7)
+    fixed = bias.correct("a", xy, heights)
+    assert abs(fixed.mean() - 1.7) < 0.005 and np.std(fixed - 1.7) < 0.032
+    assert (bias.correct("b", xy[:5], heights[:5]) == heights[:5]).all()  # per sensor
+
+
+def test_a_return_seen_by_another_sensor_than_the_leaving_is_recognised_by_height() -> None:
+    """Two sensors measure everyone 12 cm apart; the person leaves under one, returns
+    under the other, among people dressed alike: the tracker learns each sensor's
+    error from the tracks they share, and heights still say who it is."""
+    rng = np.random.default_rng(24)
+    tracker = identity_tracker()
+    heights, offset = (1.55, 1.75, 1.95), {"s0": 0.06, "s1": -0.06}
+
+    def frame(t, k, sensor, who, extra=()):
+        dets = tuple(
+            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(7, rng),
+                   height=heights[i] + offset[sensor] + rng.normal(0.0, 0.02))
+            for i in who
+        ) + extra  # fmt: skip
+        return tracker.step(batch(t, dets, k, sensor))
+
+    for k in range(600):  # both sensors see everyone
+        out = frame(T0 + k * FRAME / 2, k, ("s0", "s1")[k % 2], (0, 1, 2))
+    before = min(out.tracks, key=lambda tr: abs(tr.y - 4.5)).stable_id
+    where, bias = np.array([[1.5, 4.5]]), tracker.identity.height_bias
+    seen = [bias.correct(s, where, np.array([1.75 + offset[s]]))[0] for s in ("s0", "s1")]
+    assert abs(seen[0] - seen[1]) < 0.02
+    for k in range(300):  # the middle one leaves (last seen by s0 alone), 20 s away
+        out = frame(T0 + 300 * FRAME + k * 4 * FRAME, 600 + k, "s0", (0, 2))
+    t = T0 + 1500 * FRAME
+    for k in range(120):  # back, seen by s1 alone
+        back = person(6.0 + 0.01 * k, 6.0, look(7, rng), u=700,
+                      height=1.75 + offset["s1"] + rng.normal(0.0, 0.02))  # fmt: skip
+        out = frame(t + k * FRAME, 900 + k, "s1", (0, 2), (back,))
+    assert next(tr.stable_id for tr in out.tracks if tr.x > 5.0) == before

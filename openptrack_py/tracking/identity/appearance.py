@@ -44,11 +44,13 @@ from scipy.optimize import linear_sum_assignment
 
 from openptrack_py.config.identity import IdentityConfig
 from openptrack_py.messages.track import Track
+from openptrack_py.tracking.identity.heights import HeightBias
 from openptrack_py.tracking.identity.likelihood import (
     ISOLATION_M,
     DistanceLikelihood,
     cosine_distance,
     distance_samples,
+    height_distance,
     hellinger,
     rowwise_distance,
 )
@@ -77,16 +79,19 @@ catching the next person in through the same door)."""
 
 @dataclass(frozen=True)
 class _Side:
-    """Looks compared on one side of a log-likelihood ratio: colours and embeddings.
+    """Looks compared on one side of a log-likelihood ratio: colours, embeddings, heights.
 
     ``sig_ok`` marks the colours that count; ``emb_w`` weighs each embedding (a
-    detection's confidence, 1 for a model that has one, 0 for none).
+    detection's confidence, 1 for a model that has one, 0 for none); ``hgt_ok`` marks
+    the heights that count (none by default).
     """
 
     sig: np.ndarray
     sig_ok: np.ndarray
     emb: np.ndarray
     emb_w: np.ndarray
+    hgt: np.ndarray | None = None
+    hgt_ok: np.ndarray | None = None
 
 
 class AppearanceIdentity:
@@ -106,6 +111,8 @@ class AppearanceIdentity:
         self.cfg = config
         self.colour = DistanceLikelihood(config.max_llr)
         self.face = DistanceLikelihood(config.max_llr)
+        self.stature = DistanceLikelihood(config.max_llr)
+        self.height_bias = HeightBias()
         self.models = TrackModels()
         self.pool: tuple[PooledIdentity, ...] = ()
         self.links: dict[int, PooledIdentity] = {}
@@ -187,7 +194,9 @@ class AppearanceIdentity:
         ok = np.flatnonzero(rows >= 0)
         if len(ok):
             everyone = np.arange(len(dets))
-            out[ok] = -self._pair_llr(self._models_side(rows[ok]), _looks_side(looks, everyone))
+            heights = self.height_bias.correct(dets.sensor_id, dets.xy, dets.height)
+            seen = _looks_side(looks, everyone, heights=heights)
+            out[ok] = -self._pair_llr(self._models_side(rows[ok]), seen)
         return out if out.any() else None
 
     # ----------------------------------------------------------------- events
@@ -252,7 +261,21 @@ class AppearanceIdentity:
                 mrows[use], looks.embedding[cols[use]], looks.embedding_weight[cols[use]],
                 self.cfg.model_rate,
             )  # fmt: skip
-        self._gather_evidence(mrows, cols, dets, looks, clean & looks.has_signature[cols], t)
+        raw = dets.height[cols]
+        heights = self.height_bias.correct(dets.sensor_id, dets.xy[cols], raw)
+        known = clean & confirmed & (m.hgt_n[mrows] >= self.cfg.min_observations)
+        self.height_bias.learn(
+            dets.sensor_id, dets.xy[cols][known], raw[known] - m.hgt[mrows[known]]
+        )
+        self.stature.learn(
+            *distance_samples(
+                m.hgt[:, None], m.hgt_n >= self.cfg.min_observations, mrows, heights[:, None],
+                clean & confirmed & certain, clean & confirmed, far, others, table.confirmed,
+                "height",
+            )
+        )  # fmt: skip
+        m.learn_height(mrows[clean], heights[clean], self.cfg.model_rate)
+        self._gather_evidence(mrows, cols, dets, looks, clean, heights, t)
         self._decide(table, t)
 
     def ended(
@@ -274,7 +297,8 @@ class AppearanceIdentity:
             if mr < 0:
                 continue
             keep = reason == "deleted" and bool(table.confirmed[row])
-            keep &= m.sig_n[mr] >= self.cfg.min_observations or m.emb_w[mr] > 0
+            heights = m.hgt_n[mr] if self.cfg.height_weight > 0 else 0.0
+            keep &= max(m.sig_n[mr], heights) >= self.cfg.min_observations or m.emb_w[mr] > 0
             if keep and self.cfg.pool_s > 0:
                 pooled.append(
                     PooledIdentity(
@@ -282,6 +306,7 @@ class AppearanceIdentity:
                         emb=m.emb[mr].copy(), emb_w=float(m.emb_w[mr]),
                         xy=table.recent_xy[row].copy(), lost_at=float(table.last_seen[row]),
                         name_ev=m.name_ev[mr].copy(), impostor=self._impostor(mr),
+                        hgt=float(m.hgt[mr]), hgt_n=float(m.hgt_n[mr]),
                     )
                 )  # fmt: skip
             elif link is not None:
@@ -424,6 +449,16 @@ class AppearanceIdentity:
         if self.face.ready and dim and dim == b.emb.shape[1] and a.emb_w.any() and b.emb_w.any():
             llr = self.face.llr(cosine_distance(a.emb, b.emb))
             out += cfg.embedding_weight * llr * a.emb_w[:, None] * b.emb_w[None, :]
+        if (
+            self.stature.ready
+            and cfg.height_weight > 0
+            and a.hgt_ok is not None
+            and b.hgt_ok is not None
+            and a.hgt_ok.any()
+            and b.hgt_ok.any()
+        ):
+            llr = self.stature.llr(height_distance(a.hgt[:, None], b.hgt[:, None]))
+            out += cfg.height_weight * llr * (a.hgt_ok[:, None] & b.hgt_ok[None, :])
         return out
 
     def _models_side(self, rows: np.ndarray, settled: np.ndarray | None = None) -> _Side:
@@ -431,7 +466,10 @@ class AppearanceIdentity:
         m = self.models
         if settled is None:
             settled = m.sig_n[rows] >= self.cfg.min_observations
-        return _Side(m.sig[rows], settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float))
+        return _Side(
+            m.sig[rows], settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float),
+            m.hgt[rows], m.hgt_n[rows] >= self.cfg.min_observations,
+        )  # fmt: skip
 
     def _pool_side(self, entries: tuple[PooledIdentity, ...]) -> _Side:
         """Pooled identities."""
@@ -440,6 +478,8 @@ class AppearanceIdentity:
             np.array([e.sig_n >= self.cfg.min_observations for e in entries]),
             np.array([e.emb for e in entries]),
             np.array([float(e.emb_w > 0) for e in entries]),
+            np.array([e.hgt for e in entries]),
+            np.array([e.hgt_n >= self.cfg.min_observations for e in entries]),
         )
 
     def _gather_evidence(
@@ -448,15 +488,28 @@ class AppearanceIdentity:
         cols: np.ndarray,
         dets: DetectionArrays,
         looks: Looks,
-        has_sig: np.ndarray,
+        clean: np.ndarray,
+        heights: np.ndarray,
         t: float,
     ) -> None:
-        """Each observation adds to the evidence for pooled identities and names."""
+        """Each observation adds to the evidence for pooled identities and names.
+
+        ``clean``: the detections whose colours and height describe their person alone;
+        ``heights``: their heights, corrected for the sensor's error.
+        """
         m = self.models
-        useful = has_sig | (looks.embedding_weight[cols] > 0)
+        has_hgt = clean & (self.stature.ready and self.cfg.height_weight > 0)
+        has_sig = clean & looks.has_signature[cols]
+        useful = has_sig | has_hgt | (looks.embedding_weight[cols] > 0)
         if not useful.any():
             return
-        mrows, cols, has_sig = mrows[useful], cols[useful], has_sig[useful]
+        mrows, cols, has_sig, has_hgt = (
+            mrows[useful],
+            cols[useful],
+            has_sig[useful],
+            has_hgt[useful],
+        )
+        heights = heights[useful]
         rho = self.cfg.evidence_per_observation
         seen = _looks_side(looks, cols, has_sig)
         if len(self.roster):
@@ -476,8 +529,8 @@ class AppearanceIdentity:
         )
         if not young.any():
             return
-        mrows, cols, has_sig = mrows[young], cols[young], has_sig[young]
-        seen = _looks_side(looks, cols, has_sig)
+        mrows, cols, has_sig, has_hgt = mrows[young], cols[young], has_sig[young], has_hgt[young]
+        seen = _looks_side(looks, cols, has_sig, heights[young], has_hgt)
         entries = self.pool + tuple(
             self.links[int(m.ids[r])] for r in mrows if int(m.ids[r]) in self.links
         )
@@ -488,9 +541,11 @@ class AppearanceIdentity:
         since = np.array([e.lost_at for e in entries])
         gap = np.linalg.norm(dets.xy[cols][:, None, :] - where[None, :, :], axis=2)
         # an observation counts in the mean as much as it can say: a clean colour fully,
-        # a face alone by its weighted confidence (nothing before faces can be compared)
+        # a height alone as much as heights tell people apart against colours, a face
+        # alone by its weighted confidence (nothing before faces can be compared)
         face_w = self.cfg.embedding_weight * seen.emb_w * self.face.ready
-        weight = np.where(has_sig, 1.0, np.minimum(face_w, 1.0)).tolist()
+        alone = np.where(has_hgt, self._height_worth(), 0.0)
+        weight = np.where(has_sig, 1.0, np.minimum(np.maximum(face_w, alone), 1.0)).tolist()
         reach = self.cfg.reid_max_speed_mps * np.maximum(t - since, 0.0) + self.cfg.reid_margin_m
         for k, r in enumerate(mrows.tolist()):
             ev = self.reid_ev.setdefault(int(m.ids[r]), {})
@@ -500,6 +555,19 @@ class AppearanceIdentity:
                 if ok:
                     total, n = ev.get(e.stable, (0.0, 0))
                     ev[e.stable] = (total + value, n + weight[k])
+
+    def _height_worth(self) -> float:
+        """What a height alone says of who someone is, against a clean colour (0-1).
+
+        The ratio of the two cues' separations (the mean log-likelihood ratio over same
+        pairs): 0 where everyone is about as tall, 1 where heights tell people apart at
+        least as well as colours, or when colours tell nothing.
+        """
+        height = self.cfg.height_weight * self.stature.separation()
+        colour = self.cfg.appearance_weight * self.colour.separation()
+        if height <= 0:
+            return 0.0
+        return 1.0 if colour <= 0 else min(height / colour, 1.0)
 
     # -------------------------------------------------------------- decisions
 
@@ -657,6 +725,7 @@ class AppearanceIdentity:
             {k: dict(v) for k, v in self.reid_ev.items()}, dict(self.named),
             self.colour.state(), self.face.state(), dict(self.apart), self.returns.state(),
             dict(self.together), tuple(self.roster.names), len(self.told),
+            self.stature.state(), self.height_bias.state(),
         )  # fmt: skip
 
     def restore(self, state: tuple) -> None:
@@ -672,6 +741,11 @@ class AppearanceIdentity:
         self.reid_ev = {k: dict(v) for k, v in reid_ev.items()}
         self.colour.restore(colour)
         self.face.restore(face)
+        if len(rest) > 5:  # checkpoints written before heights were modelled lack them
+            self.stature.restore(rest[4])
+            self.height_bias.restore(rest[5])
+        else:
+            self.stature, self.height_bias = DistanceLikelihood(self.cfg.max_llr), HeightBias()
         if len(rest) > 2:  # the roster may have changed since: names follow by name
             self._follow_roster(rest[2])
             for track_id, name in self.told[rest[3] :]:  # said since: said again
@@ -708,13 +782,27 @@ def _mean(evidence: tuple[float, float] | None) -> float:
     return evidence[0] / evidence[1]
 
 
-def _looks_side(looks: Looks, cols: np.ndarray, has_sig: np.ndarray | None = None) -> _Side:
-    """Detections ``cols`` of a batch; colours count where ``has_sig`` (default: any)."""
+def _looks_side(
+    looks: Looks,
+    cols: np.ndarray,
+    has_sig: np.ndarray | None = None,
+    heights: np.ndarray | None = None,
+    has_hgt: np.ndarray | None = None,
+) -> _Side:
+    """Detections ``cols`` of a batch; colours count where ``has_sig`` (default: any).
+
+    ``heights`` (of the detections ``cols``) count where ``has_hgt`` (default: all); no
+    height counts without them.
+    """
+    if heights is not None and has_hgt is None:
+        has_hgt = np.ones(len(heights), dtype=bool)
     return _Side(
         looks.signature[cols],
         looks.has_signature[cols] if has_sig is None else has_sig,
         looks.embedding[cols],
         looks.embedding_weight[cols],
+        heights,
+        has_hgt,
     )
 
 

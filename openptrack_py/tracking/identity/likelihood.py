@@ -32,6 +32,9 @@ MIN_SAMPLES = 50.0
 """Samples each histogram needs before the ratio is used at all."""
 MAX_DIFFERENT_SAMPLES = 64
 """Different-person distances learned per step at most."""
+HEIGHT_RANGE_M = 0.5
+"""Height differences from 0 to this map to distances 0 to 1 (larger ones to 1): bins of
+1.6 cm, finer than a depth sensor measures a height."""
 ISOLATION_M = 1.5
 """A detection is certainly not the person of a track farther than this (a "different"
 sample)."""
@@ -122,8 +125,18 @@ def cosine_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.clip((1.0 - a @ b.T) / 2.0, 0.0, 1.0)
 
 
+def height_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distances ``(n, m)`` in [0, 1] between heights ``(n, 1)`` and ``(m, 1)``, metres."""
+    return np.minimum(np.abs(a - b.T) / HEIGHT_RANGE_M, 1.0)
+
+
+_PAIRWISE = {"hellinger": hellinger, "cosine": cosine_distance, "height": height_distance}
+
+
 def rowwise_distance(kind: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distances between rows ``a[k]`` and ``b[k]`` ("hellinger" or "cosine")."""
+    """Distances between rows ``a[k]`` and ``b[k]`` ("hellinger", "cosine" or "height")."""
+    if kind == "height":
+        return np.minimum(np.abs(a - b).sum(axis=1) / HEIGHT_RANGE_M, 1.0)
     if kind == "hellinger":
         bc = (np.sqrt(np.maximum(a, 0.0)) * np.sqrt(np.maximum(b, 0.0))).sum(axis=1)
         return np.sqrt(np.clip(1.0 - bc, 0.0, 1.0))
@@ -158,7 +171,6 @@ def distance_samples(
     sel = np.flatnonzero(use)
     if len(sel) and valid.any():
         cand = np.flatnonzero(valid)
-        pairwise = hellinger if kind == "hellinger" else cosine_distance
-        d = pairwise(looks[sel], refs[others[cand]])
+        d = _PAIRWISE[kind](looks[sel], refs[others[cand]])
         different = d[far[sel][:, cand]][:MAX_DIFFERENT_SAMPLES]
     return same, different

@@ -28,6 +28,9 @@ class TrackModels:
         Colour model ``(n, B)`` (summing to 1) and the clean signatures it averages.
     emb, emb_w : ndarray
         Embedding model ``(n, D)`` (unit rows once any was seen) and its weight.
+    hgt, hgt_n : ndarray
+        Height model (the average of the clean detections' heights, metres) and the
+        heights it averages.
     stable : ndarray of int
         The identity published as ``stable_id``.
     own : ndarray of bool
@@ -43,17 +46,26 @@ class TrackModels:
     sig_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
     emb: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     emb_w: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    hgt: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    hgt_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
     stable: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_INT))
     own: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     born: np.ndarray = field(default_factory=lambda: np.zeros(0))
     name_ev: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     COLUMNS = (
-        "ids", "sig", "sig_n", "emb", "emb_w", "stable", "own", "born", "name_ev",
+        "ids", "sig", "sig_n", "emb", "emb_w", "hgt", "hgt_n", "stable", "own", "born",
+        "name_ev",
     )  # fmt: skip
 
     def __len__(self) -> int:
         return len(self.ids)
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        # a checkpoint written before heights were modelled
+        self.__dict__.update(state)
+        for name in ("hgt", "hgt_n"):
+            self.__dict__.setdefault(name, np.zeros(len(self.ids)))
 
     def copy(self) -> TrackModels:
         """An independent copy."""
@@ -77,6 +89,8 @@ class TrackModels:
         self.sig_n = np.concatenate([self.sig_n, np.zeros(n)])
         self.emb = np.vstack([self.emb, np.zeros((n, self.emb.shape[1]))])
         self.emb_w = np.concatenate([self.emb_w, np.zeros(n)])
+        self.hgt = np.concatenate([self.hgt, np.zeros(n)])
+        self.hgt_n = np.concatenate([self.hgt_n, np.zeros(n)])
         self.stable = np.concatenate([self.stable, ids.astype(_INT)])
         self.own = np.concatenate([self.own, np.ones(n, dtype=bool)])
         self.born = np.concatenate([self.born, np.full(n, born)])
@@ -107,6 +121,13 @@ class TrackModels:
         r = np.maximum(rate, 1.0 / (n + 1.0))[:, None]
         self.sig[rows] = (1.0 - r) * self.sig[rows] + r * sigs
         self.sig_n[rows] = n + 1.0
+
+    def learn_height(self, rows: np.ndarray, heights: np.ndarray, rate: float) -> None:
+        """Average clean detections' ``heights`` into the height models of ``rows``."""
+        n = self.hgt_n[rows]
+        r = np.maximum(rate, 1.0 / (n + 1.0))
+        self.hgt[rows] = (1.0 - r) * self.hgt[rows] + r * heights
+        self.hgt_n[rows] = n + 1.0
 
     def learn_embedding(
         self, rows: np.ndarray, embs: np.ndarray, weights: np.ndarray, rate: float
@@ -150,6 +171,8 @@ class PooledIdentity:
     impostor : float
         The highest model-to-model log-likelihood ratio between this person and anyone
         seen alive with them (certainly someone else): how alike a stranger can look.
+    hgt, hgt_n : float
+        The lost track's height model and the heights it averages.
     """
 
     stable: int
@@ -161,3 +184,5 @@ class PooledIdentity:
     lost_at: float
     name_ev: np.ndarray
     impostor: float = -np.inf
+    hgt: float = 0.0
+    hgt_n: float = 0.0
