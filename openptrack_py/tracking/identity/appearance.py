@@ -194,7 +194,9 @@ class AppearanceIdentity:
         ok = np.flatnonzero(rows >= 0)
         if len(ok):
             everyone = np.arange(len(dets))
-            heights = self.height_bias.correct(dets.sensor_id, dets.xy, dets.height)
+            heights = None
+            if self._uses_heights:
+                heights = self.height_bias.correct(dets.sensor_id, dets.xy, dets.height)
             seen = _looks_side(looks, everyone, heights=heights)
             out[ok] = -self._pair_llr(self._models_side(rows[ok]), seen)
         return out if out.any() else None
@@ -261,22 +263,51 @@ class AppearanceIdentity:
                 mrows[use], looks.embedding[cols[use]], looks.embedding_weight[cols[use]],
                 self.cfg.model_rate,
             )  # fmt: skip
+        heights = dets.height[cols]
+        if self._uses_heights:
+            learnable = (confirmed, certain, far, others)
+            heights = self._learn_heights(table, mrows, cols, dets, clean, learnable)
+        self._gather_evidence(mrows, cols, dets, looks, clean, heights, t)
+        self._decide(table, t)
+
+    @property
+    def _uses_heights(self) -> bool:
+        """Whether heights are a cue (``height_weight`` > 0); if not, none is learned."""
+        return self.cfg.height_weight > 0
+
+    def _learn_heights(
+        self,
+        table: TrackTable,
+        mrows: np.ndarray,
+        cols: np.ndarray,
+        dets: DetectionArrays,
+        clean: np.ndarray,
+        learnable: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    ) -> np.ndarray:
+        """Learn heights from one step's updates; return them corrected for the sensor.
+
+        Each sensor's height error, the height likelihood and the tracks' height models.
+
+        ``learnable``: per update, its track confirmed and motion alone certain, and the
+        tracks far from it and every table track's model row (as for colours).
+        """
+        m, enough = self.models, self.cfg.min_observations
+        confirmed, certain, far, others = learnable
         raw = dets.height[cols]
         heights = self.height_bias.correct(dets.sensor_id, dets.xy[cols], raw)
-        known = clean & confirmed & (m.hgt_n[mrows] >= self.cfg.min_observations)
+        known = clean & confirmed & (m.hgt_n[mrows] >= enough)
         self.height_bias.learn(
             dets.sensor_id, dets.xy[cols][known], raw[known] - m.hgt[mrows[known]]
         )
         self.stature.learn(
             *distance_samples(
-                m.hgt[:, None], m.hgt_n >= self.cfg.min_observations, mrows, heights[:, None],
+                m.hgt[:, None], m.hgt_n >= enough, mrows, heights[:, None],
                 clean & confirmed & certain, clean & confirmed, far, others, table.confirmed,
                 "height",
             )
         )  # fmt: skip
         m.learn_height(mrows[clean], heights[clean], self.cfg.model_rate)
-        self._gather_evidence(mrows, cols, dets, looks, clean, heights, t)
-        self._decide(table, t)
+        return heights
 
     def ended(
         self, table: TrackTable, rows: np.ndarray, t: float, reason: str = "deleted"
@@ -297,7 +328,7 @@ class AppearanceIdentity:
             if mr < 0:
                 continue
             keep = reason == "deleted" and bool(table.confirmed[row])
-            heights = m.hgt_n[mr] if self.cfg.height_weight > 0 else 0.0
+            heights = m.hgt_n[mr] if self._uses_heights else 0.0
             keep &= max(m.sig_n[mr], heights) >= self.cfg.min_observations or m.emb_w[mr] > 0
             if keep and self.cfg.pool_s > 0:
                 pooled.append(
@@ -498,18 +529,13 @@ class AppearanceIdentity:
         ``heights``: their heights, corrected for the sensor's error.
         """
         m = self.models
-        has_hgt = clean & (self.stature.ready and self.cfg.height_weight > 0)
+        has_hgt = clean & (self._uses_heights and self.stature.ready)
         has_sig = clean & looks.has_signature[cols]
         useful = has_sig | has_hgt | (looks.embedding_weight[cols] > 0)
         if not useful.any():
             return
-        mrows, cols, has_sig, has_hgt = (
-            mrows[useful],
-            cols[useful],
-            has_sig[useful],
-            has_hgt[useful],
-        )
-        heights = heights[useful]
+        mrows, cols, heights = mrows[useful], cols[useful], heights[useful]
+        has_sig, has_hgt = has_sig[useful], has_hgt[useful]
         rho = self.cfg.evidence_per_observation
         seen = _looks_side(looks, cols, has_sig)
         if len(self.roster):
