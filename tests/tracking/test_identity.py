@@ -99,6 +99,19 @@ def test_where_everyone_looks_alike_the_likelihood_stays_near_zero() -> None:
     assert model.separation() < 0.1
 
 
+def test_a_look_farther_from_the_model_never_counts_more_for_the_person() -> None:
+    # many different-person samples, few same-person ones, none of either far out: the
+    # far bins hold only the prior, which on its own favoured the rarer kind (+2.5 nats
+    # at a distance no sample reached)
+    model = DistanceLikelihood(max_llr=3.0)
+    rng = np.random.default_rng(3)
+    model.learn(rng.uniform(0.0, 0.3, 100), rng.uniform(0.3, 0.6, 2000))
+    table = model.llr(np.linspace(0.0, 1.0, 101))
+    assert (np.diff(table) <= 1e-12).all()
+    assert model.llr(np.array([0.9]))[0] < -1.0
+    assert model.llr(np.array([0.1]))[0] > 2.0
+
+
 def test_hellinger_is_zero_for_equal_and_one_for_disjoint_histograms() -> None:
     a = np.array([[0.5, 0.5, 0.0, 0.0]])
     b = np.array([[0.5, 0.5, 0.0, 0.0], [0.0, 0.0, 0.5, 0.5]])

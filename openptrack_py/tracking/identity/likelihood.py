@@ -18,11 +18,17 @@ learning). Both start from the same prior, so the ratio is 0 (no opinion) until
 evidence comes in; where everyone looks alike the two stay alike and the ratio near 0,
 so identity cannot make tracking worse. Old samples fade (``half_life`` samples), so the
 model follows lighting that changes over a day.
+
+The ratio is fitted non-increasing in the distance (weighted isotonic regression): a
+look farther from a model is never more likely to be that person. Without it the sparse
+far bins, where the prior pseudo-counts weigh most, favour whichever kind has fewer
+samples there; a very different face could count *for* a person.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import isotonic_regression
 
 BINS = 32
 """Histogram bins over distances in [0, 1]."""
@@ -74,7 +80,10 @@ class DistanceLikelihood:
         smooth = self.counts + PRIOR
         smooth = (np.roll(smooth, 1, axis=1) + 2 * smooth + np.roll(smooth, -1, axis=1)) / 4
         p = smooth / smooth.sum(axis=1, keepdims=True)
-        self.table = np.clip(np.log(p[0] / p[1]), -self.max_llr, self.max_llr)
+        # non-increasing in the distance, each bin weighing by the samples it holds
+        ratio = np.log(p[0] / p[1])
+        fit = isotonic_regression(ratio, weights=smooth.sum(axis=0), increasing=False)
+        self.table = np.clip(fit.x, -self.max_llr, self.max_llr)
 
     @property
     def ready(self) -> bool:
