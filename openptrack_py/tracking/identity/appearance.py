@@ -481,8 +481,8 @@ class AppearanceIdentity:
             llr = self.face.llr(cosine_distance(a.emb, b.emb))
             out += cfg.embedding_weight * llr * a.emb_w[:, None] * b.emb_w[None, :]
         if (
-            self.stature.ready
-            and cfg.height_weight > 0
+            self._uses_heights
+            and self.stature.ready
             and a.hgt_ok is not None
             and b.hgt_ok is not None
             and a.hgt_ok.any()
@@ -497,20 +497,25 @@ class AppearanceIdentity:
         m = self.models
         if settled is None:
             settled = m.sig_n[rows] >= self.cfg.min_observations
-        return _Side(
-            m.sig[rows], settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float),
-            m.hgt[rows], m.hgt_n[rows] >= self.cfg.min_observations,
-        )  # fmt: skip
+        side = _Side(m.sig[rows], settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float))
+        if not self._uses_heights:
+            return side
+        return replace(side, hgt=m.hgt[rows], hgt_ok=m.hgt_n[rows] >= self.cfg.min_observations)
 
     def _pool_side(self, entries: tuple[PooledIdentity, ...]) -> _Side:
         """Pooled identities."""
-        return _Side(
+        side = _Side(
             np.array([e.sig for e in entries]),
             np.array([e.sig_n >= self.cfg.min_observations for e in entries]),
             np.array([e.emb for e in entries]),
             np.array([float(e.emb_w > 0) for e in entries]),
-            np.array([e.hgt for e in entries]),
-            np.array([e.hgt_n >= self.cfg.min_observations for e in entries]),
+        )
+        if not self._uses_heights:
+            return side
+        return replace(
+            side,
+            hgt=np.array([e.hgt for e in entries]),
+            hgt_ok=np.array([e.hgt_n >= self.cfg.min_observations for e in entries]),
         )
 
     def _gather_evidence(

@@ -117,17 +117,11 @@ class TrackModels:
 
     def learn_colour(self, rows: np.ndarray, sigs: np.ndarray, rate: float) -> None:
         """Average clean signatures ``sigs`` into the colour models of ``rows``."""
-        n = self.sig_n[rows]
-        r = np.maximum(rate, 1.0 / (n + 1.0))[:, None]
-        self.sig[rows] = (1.0 - r) * self.sig[rows] + r * sigs
-        self.sig_n[rows] = n + 1.0
+        _average_into(self.sig, self.sig_n, rows, sigs, rate)
 
     def learn_height(self, rows: np.ndarray, heights: np.ndarray, rate: float) -> None:
         """Average clean detections' ``heights`` into the height models of ``rows``."""
-        n = self.hgt_n[rows]
-        r = np.maximum(rate, 1.0 / (n + 1.0))
-        self.hgt[rows] = (1.0 - r) * self.hgt[rows] + r * heights
-        self.hgt_n[rows] = n + 1.0
+        _average_into(self.hgt, self.hgt_n, rows, heights, rate)
 
     def learn_embedding(
         self, rows: np.ndarray, embs: np.ndarray, weights: np.ndarray, rate: float
@@ -150,6 +144,20 @@ class TrackModels:
         if len(self) and old.any():
             out[:, old] = self.name_ev[:, mapping[old]]
         self.name_ev = out
+
+
+def _average_into(
+    model: np.ndarray, count: np.ndarray, rows: np.ndarray, values: np.ndarray, rate: float
+) -> None:
+    """Average ``values`` into ``model[rows]`` (in place), counting them in ``count``.
+
+    The plain mean of the first ``1 / rate`` values, then an exponential average of rate
+    ``rate`` (a model that follows slow changes).
+    """
+    n = count[rows]
+    r = np.maximum(rate, 1.0 / (n + 1.0)).reshape((-1,) + (1,) * (values.ndim - 1))
+    model[rows] = (1.0 - r) * model[rows] + r * values
+    count[rows] = n + 1.0
 
 
 @dataclass(frozen=True)
