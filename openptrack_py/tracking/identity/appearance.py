@@ -17,7 +17,9 @@
   its mean log-likelihood ratio passes ``reid_mean_llr`` and beats every rival by
   ``reid_margin``, one-to-one (Hungarian). Evidence keeps coming in during the track's
   first ``reid_window_s``; a link it contradicts is undone and the identity goes back to
-  the pool.
+  the pool. A person the pool missed once (back under a new identity) would leave two
+  identities in it, splitting every later return; the newer replaces the older when it
+  is pooled, unless those it looked like were there at the same time (two people).
 * **Names** (the paper's registered children, v2's named faces): evidence for each
   registered person accumulates the same way (bounded by shifting a track's evidence
   down as a whole, so its margins between names survive); a name needs ``link_margin``
@@ -118,6 +120,8 @@ class AppearanceIdentity:
         self.links: dict[int, PooledIdentity] = {}
         self.reid_ev: dict[int, dict[int, tuple[float, float]]] = {}
         self.named: dict[int, int] = {}
+        self.resembled: dict[int, tuple[int, ...]] = {}
+        self.since: dict[int, float] = {}  # linked tracks: when their identity began
         self.apart: dict[tuple[int, int], float] = {}
         self.together: dict[tuple[int, int], float] = {}
         self.returns = ReturnRate()
@@ -323,23 +327,30 @@ class AppearanceIdentity:
         pooled = list(self.pool)
         for row, tid, mr in zip(rows.tolist(), ids.tolist(), mrows.tolist(), strict=True):
             link = self.links.pop(tid, None)
-            self.reid_ev.pop(tid, None)
+            evidence = self.reid_ev.pop(tid, None)
+            if evidence and link is None:  # lost before its window was over
+                self._resemble(tid, evidence)
             self.named.pop(tid, None)
+            resembled = self.resembled.pop(tid, ())
+            began = self.since.pop(tid, None)
             if mr < 0:
                 continue
             keep = reason == "deleted" and bool(table.confirmed[row])
             heights = m.hgt_n[mr] if self._uses_heights else 0.0
             keep &= max(m.sig_n[mr], heights) >= self.cfg.min_observations or m.emb_w[mr] > 0
             if keep and self.cfg.pool_s > 0:
+                born = float(m.born[mr]) if began is None else began
                 pooled.append(
                     PooledIdentity(
                         stable=int(m.stable[mr]), sig=m.sig[mr].copy(), sig_n=float(m.sig_n[mr]),
                         emb=m.emb[mr].copy(), emb_w=float(m.emb_w[mr]),
                         xy=table.recent_xy[row].copy(), lost_at=float(table.last_seen[row]),
                         name_ev=m.name_ev[mr].copy(), impostor=self._impostor(mr),
-                        hgt=float(m.hgt[mr]), hgt_n=float(m.hgt_n[mr]),
+                        hgt=float(m.hgt[mr]), hgt_n=float(m.hgt_n[mr]), born_at=born,
                     )
                 )  # fmt: skip
+                # one person, one pooled identity: the newest (see _resemble)
+                pooled = [e for e in pooled if e.stable not in resembled]
             elif link is not None:
                 pooled.append(link)  # a duplicate's borrowed identity is free again
         self.pool = tuple(pooled)
@@ -613,10 +624,11 @@ class AppearanceIdentity:
             entry = self.links[tid]
             if t - m.born[row] > cfg.reid_window_s:
                 del self.links[tid]  # settled
-                self._settle(tid)
+                self._settle(tid, linked=True)
             elif _mean(self.reid_ev.get(tid, {}).get(entry.stable)) <= cfg.unlink_evidence:
                 del self.links[tid]
                 m.stable[row], m.own[row] = tid, True
+                self.since.pop(tid, None)
                 self.pool += (entry,)
                 self.counters["unlinked"] += 1
         for tid in [k for k in self.reid_ev if k not in self.links]:
@@ -624,14 +636,40 @@ class AppearanceIdentity:
             if row < 0:
                 del self.reid_ev[tid]
             elif t - m.born[row] > cfg.reid_window_s:
-                self._settle(tid)
+                self._settle(tid, linked=False)
         self._link(table, t)
         self._name(table)
 
-    def _settle(self, tid: int) -> None:
+    def _settle(self, tid: int, linked: bool) -> None:
         """Track ``tid``'s re-identification window is over: its evidence joins the prior."""
-        ev = self.reid_ev.pop(tid, {})
-        self.returns.add(np.array([_mean(e) for e in ev.values()]))
+        evidence = self.reid_ev.pop(tid, {})
+        self.returns.add(np.array([_mean(e) for e in evidence.values()]))
+        if not linked:
+            self._resemble(tid, evidence)
+
+    def _resemble(self, tid: int, evidence: dict[int, tuple[float, float]]) -> None:
+        """Which pooled identities track ``tid``, which took none, may be the person of.
+
+        A track that looked like some (a mean of at least ``reid_mean_llr``, within
+        ``reid_margin`` of its best) may be their person, back under a new identity: the
+        earlier identities of one person who was not taken back before. Its pooled
+        identity, when it is lost, replaces theirs: left side by side, the person's
+        identities would split the posterior at every later return, and none would
+        ever be taken back. Not when two of them were there at the same time: they are
+        two people, and the track can be at most one of them.
+        """
+        means = {stable: _mean(e) for stable, e in evidence.items()}
+        best = max(means.values(), default=-np.inf)
+        if best < self.cfg.reid_mean_llr:
+            return
+        floor = max(best - self.cfg.reid_margin, self.cfg.reid_mean_llr)
+        alike = [e for e in self.pool if means.get(e.stable, -np.inf) >= floor]
+        if not alike:
+            return
+        born, lost = np.array([(e.born_at, e.lost_at) for e in alike]).T
+        together = (born[:, None] <= lost[None, :]) & (born[None, :] <= lost[:, None])
+        if together.sum() == len(alike):  # each only with itself
+            self.resembled[tid] = tuple(e.stable for e in alike)
 
     def _link(self, table: TrackTable, t: float) -> None:
         """Young confirmed tracks take back the pooled identities they clearly are.
@@ -685,6 +723,7 @@ class AppearanceIdentity:
             m.stable[row], m.own[row] = entry.stable, False
             m.name_ev[row] = np.maximum(m.name_ev[row], entry.name_ev)
             self.links[tid] = entry
+            self.since[tid] = entry.born_at
             taken.add(c)
             self.counters["reidentified"] += 1
         self.pool = tuple(e for k, e in enumerate(self.pool) if k not in taken)
@@ -756,7 +795,7 @@ class AppearanceIdentity:
             {k: dict(v) for k, v in self.reid_ev.items()}, dict(self.named),
             self.colour.state(), self.face.state(), dict(self.apart), self.returns.state(),
             dict(self.together), tuple(self.roster.names), len(self.told),
-            self.stature.state(), self.height_bias.state(),
+            self.stature.state(), self.height_bias.state(), dict(self.resembled), dict(self.since),
         )  # fmt: skip
 
     def restore(self, state: tuple) -> None:
@@ -777,6 +816,8 @@ class AppearanceIdentity:
             self.height_bias.restore(rest[5])
         else:
             self.stature, self.height_bias = DistanceLikelihood(self.cfg.max_llr), HeightBias()
+        self.resembled = dict(rest[6]) if len(rest) > 6 else {}
+        self.since = dict(rest[7]) if len(rest) > 7 else {}
         if len(rest) > 2:  # the roster may have changed since: names follow by name
             self._follow_roster(rest[2])
             for track_id, name in self.told[rest[3] :]:  # said since: said again

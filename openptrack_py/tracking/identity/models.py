@@ -181,6 +181,8 @@ class PooledIdentity:
         seen alive with them (certainly someone else): how alike a stranger can look.
     hgt, hgt_n : float
         The lost track's height model and the heights it averages.
+    born_at : float
+        When the lost track began (``-inf``: unknown, taken as always there).
     """
 
     stable: int
@@ -194,3 +196,4 @@ class PooledIdentity:
     impostor: float = -np.inf
     hgt: float = 0.0
     hgt_n: float = 0.0
+    born_at: float = -np.inf
