@@ -71,7 +71,9 @@ class IdentityConfig(StrictModel):
     reid_mean_llr : float
         Least mean log-likelihood ratio of its observations against the pooled identity
         (a mean, not a sum: frames are not independent, and a sum would soon pass any
-        threshold for a stranger who merely dresses alike).
+        threshold for a stranger who merely dresses alike). Colours and identity
+        embeddings are averaged each over the observations that carry them and the two
+        means added (independent cues).
     reid_margin : float
         Least lead of that mean over every other young track that could be the same
         pooled identity.

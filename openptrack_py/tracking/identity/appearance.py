@@ -14,7 +14,8 @@
   for re-identification): a confirmed track that ends leaves its identity in a pool for
   ``pool_s``; a young track gathers evidence for each pooled identity it could be
   (one it could have walked to since), and takes one back once, after ``reid_min_s``,
-  its mean log-likelihood ratio passes ``reid_mean_llr`` and beats every rival by
+  its mean log-likelihood ratio (colours and faces each averaged over the observations
+  that carry them, the two means added) passes ``reid_mean_llr`` and beats every rival by
   ``reid_margin``, one-to-one (Hungarian). Evidence keeps coming in during the track's
   first ``reid_window_s``; a link it contradicts is undone and the identity goes back to
   the pool. A person the pool missed once (back under a new identity) would leave two
@@ -118,7 +119,7 @@ class AppearanceIdentity:
         self.models = TrackModels()
         self.pool: tuple[PooledIdentity, ...] = ()
         self.links: dict[int, PooledIdentity] = {}
-        self.reid_ev: dict[int, dict[int, tuple[float, float]]] = {}
+        self.reid_ev: dict[int, dict[int, tuple[float, ...]]] = {}
         self.named: dict[int, int] = {}
         self.resembled: dict[int, tuple[int, ...]] = {}
         self.since: dict[int, float] = {}  # linked tracks: when their identity began
@@ -578,25 +579,34 @@ class AppearanceIdentity:
         )
         if not entries:
             return
-        llr = self._pair_llr(seen, self._pool_side(entries))
+        pooled = self._pool_side(entries)
+        # colours (and heights) and faces are two cues, each averaged over the
+        # observations that carry it, their means added (they are independent given who
+        # it is): faces seen in a fifth of the frames count fully, not by a fifth
+        llr = self._pair_llr(replace(seen, emb_w=np.zeros_like(seen.emb_w)), pooled)
+        faces = self._pair_llr(
+            _Side(seen.sig, np.zeros_like(seen.sig_ok), seen.emb, seen.emb_w), pooled
+        )
         where = np.array([e.xy for e in entries])
         since = np.array([e.lost_at for e in entries])
         gap = np.linalg.norm(dets.xy[cols][:, None, :] - where[None, :, :], axis=2)
-        # an observation counts in the mean as much as it can say: a clean colour fully,
-        # a height alone as much as heights tell people apart against colours, a face
-        # alone by its weighted confidence (nothing before faces can be compared)
-        face_w = self.cfg.embedding_weight * seen.emb_w * self.face.ready
+        # an observation counts in a mean as much as it can say: a clean colour fully, a
+        # height alone as much as heights tell people apart against colours, a face by
+        # its confidence where the pooled identity has one (none before faces compare)
         alone = np.where(has_hgt, self._height_worth(), 0.0)
-        weight = np.where(has_sig, 1.0, np.minimum(np.maximum(face_w, alone), 1.0)).tolist()
+        weight = np.where(has_sig, 1.0, np.minimum(alone, 1.0)).tolist()
+        face_w = (seen.emb_w[:, None] * pooled.emb_w[None, :] * self.face.ready).tolist()
         reach = self.cfg.reid_max_speed_mps * np.maximum(t - since, 0.0) + self.cfg.reid_margin_m
         for k, r in enumerate(mrows.tolist()):
             ev = self.reid_ev.setdefault(int(m.ids[r]), {})
-            for e, value, ok in zip(
-                entries, llr[k].tolist(), (gap[k] <= reach).tolist(), strict=True
-            ):
+            for e, value, face, fw, ok in zip(
+                entries, llr[k].tolist(), faces[k].tolist(), face_w[k],
+                (gap[k] <= reach).tolist(), strict=True,
+            ):  # fmt: skip
                 if ok:
-                    total, n = ev.get(e.stable, (0.0, 0))
-                    ev[e.stable] = (total + value, n + weight[k])
+                    total, n, *face_ev = ev.get(e.stable, (0.0, 0.0, 0.0, 0.0))
+                    f_total, f_n = face_ev or (0.0, 0.0)
+                    ev[e.stable] = (total + value, n + weight[k], f_total + face, f_n + fw)
 
     def _height_worth(self) -> float:
         """What a height alone says of who someone is, against a clean colour (0-1).
@@ -647,7 +657,7 @@ class AppearanceIdentity:
         if not linked:
             self._resemble(tid, evidence)
 
-    def _resemble(self, tid: int, evidence: dict[int, tuple[float, float]]) -> None:
+    def _resemble(self, tid: int, evidence: dict[int, tuple[float, ...]]) -> None:
         """Which pooled identities track ``tid``, which took none, may be the person of.
 
         A track that looked like some (a mean of at least ``reid_mean_llr``, within
@@ -842,16 +852,21 @@ def _remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:
     return out
 
 
-def _mean(evidence: tuple[float, float] | None) -> float:
-    """Mean log-likelihood ratio of ``(sum, observations)`` evidence (``-inf`` without any).
+def _mean(evidence: tuple[float, ...] | None) -> float:
+    """Mean log-likelihood ratio of ``(sum, observations[, face sum, face observations])``.
 
-    Observations are weighted by what they can say (see ``_gather_evidence``).
+    ``-inf`` without any evidence. Colours (with heights) and faces are each averaged
+    over the observations that carry them, weighted by what they can say (see
+    ``_gather_evidence``), and the means added; a cue with fewer than
+    :data:`MIN_REID_OBSERVATIONS` says nothing yet.
     """
     if not evidence:
         return -np.inf
-    if evidence[1] < MIN_REID_OBSERVATIONS:
-        return 0.0
-    return evidence[0] / evidence[1]
+    out = 0.0
+    for total, n in zip(evidence[0::2], evidence[1::2], strict=True):
+        if n >= MIN_REID_OBSERVATIONS:
+            out += total / n
+    return out
 
 
 def _looks_side(
