@@ -584,9 +584,12 @@ class AppearanceIdentity:
         # observations that carry it, their means added (they are independent given who
         # it is): faces seen in a fifth of the frames count fully, not by a fifth
         llr = self._pair_llr(replace(seen, emb_w=np.zeros_like(seen.emb_w)), pooled)
-        faces = self._pair_llr(
-            _Side(seen.sig, np.zeros_like(seen.sig_ok), seen.emb, seen.emb_w), pooled
-        )
+        faces = np.zeros_like(llr)
+        face_w = np.zeros_like(llr)
+        if self.face.ready and seen.emb_w.any():
+            faces_only = _Side(seen.sig, np.zeros_like(seen.sig_ok), seen.emb, seen.emb_w)
+            faces = self._pair_llr(faces_only, pooled)
+            face_w = seen.emb_w[:, None] * pooled.emb_w[None, :]
         where = np.array([e.xy for e in entries])
         since = np.array([e.lost_at for e in entries])
         gap = np.linalg.norm(dets.xy[cols][:, None, :] - where[None, :, :], axis=2)
@@ -595,12 +598,11 @@ class AppearanceIdentity:
         # its confidence where the pooled identity has one (none before faces compare)
         alone = np.where(has_hgt, self._height_worth(), 0.0)
         weight = np.where(has_sig, 1.0, np.minimum(alone, 1.0)).tolist()
-        face_w = (seen.emb_w[:, None] * pooled.emb_w[None, :] * self.face.ready).tolist()
         reach = self.cfg.reid_max_speed_mps * np.maximum(t - since, 0.0) + self.cfg.reid_margin_m
         for k, r in enumerate(mrows.tolist()):
             ev = self.reid_ev.setdefault(int(m.ids[r]), {})
             for e, value, face, fw, ok in zip(
-                entries, llr[k].tolist(), faces[k].tolist(), face_w[k],
+                entries, llr[k].tolist(), faces[k].tolist(), face_w[k].tolist(),
                 (gap[k] <= reach).tolist(), strict=True,
             ):  # fmt: skip
                 if ok:

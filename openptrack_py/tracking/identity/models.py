@@ -182,7 +182,8 @@ class PooledIdentity:
     hgt, hgt_n : float
         The lost track's height model and the heights it averages.
     born_at : float
-        When the lost track began (``-inf``: unknown, taken as always there).
+        When the identity began: its first track's start, through links (``-inf``:
+        unknown, taken as always there).
     """
 
     stable: int
