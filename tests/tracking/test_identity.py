@@ -536,6 +536,16 @@ def test_a_checkpoint_from_before_heights_restores_without_them() -> None:
     assert restarted.identity.models.hgt_n.max() > 0
 
 
+def test_return_evidence_from_before_faces_were_averaged_apart_still_counts() -> None:
+    """Checkpoints written before faces were averaged apart hold (sum, observations)."""
+    tracker = identity_tracker()
+    old = list(tracker.identity.snapshot())
+    old[3] = {7: {2: (30.0, 15.0)}}  # a young track's evidence, as an older version wrote it
+    restarted = identity_tracker()
+    restarted.identity.restore(tuple(old))
+    assert restarted.identity.reid_ev == {7: {2: (30.0, 15.0, 0.0, 0.0)}}
+
+
 def test_identity_off_is_the_default_and_costs_nothing() -> None:
     tracker = build_tracker()
     assert not tracker.identity.needs_looks

@@ -67,6 +67,9 @@ NAME_EVIDENCE_BOUND = 4.0
 """A track's evidence for a name stays within this many times ``link_evidence``."""
 MIN_REID_OBSERVATIONS = 10
 """Observations of a young track against a pooled identity before their mean counts."""
+_NO_EVIDENCE = (0.0, 0.0, 0.0, 0.0)
+"""A young track's evidence against a pooled identity before any observation: the sum and
+weight of its colour log-likelihood ratios, then of its face ones."""
 DISTINCT_OBSERVATIONS = 10
 """Clean signatures each of two tracks needs before they can be judged two people."""
 BLOB_GAP_S = 1.0
@@ -119,7 +122,7 @@ class AppearanceIdentity:
         self.models = TrackModels()
         self.pool: tuple[PooledIdentity, ...] = ()
         self.links: dict[int, PooledIdentity] = {}
-        self.reid_ev: dict[int, dict[int, tuple[float, ...]]] = {}
+        self.reid_ev: dict[int, dict[int, tuple[float, float, float, float]]] = {}
         self.named: dict[int, int] = {}
         self.resembled: dict[int, tuple[int, ...]] = {}
         self.since: dict[int, float] = {}  # linked tracks: when their identity began
@@ -606,8 +609,7 @@ class AppearanceIdentity:
                 (gap[k] <= reach).tolist(), strict=True,
             ):  # fmt: skip
                 if ok:
-                    total, n, *face_ev = ev.get(e.stable, (0.0, 0.0, 0.0, 0.0))
-                    f_total, f_n = face_ev or (0.0, 0.0)
+                    total, n, f_total, f_n = ev.get(e.stable, _NO_EVIDENCE)
                     ev[e.stable] = (total + value, n + weight[k], f_total + face, f_n + fw)
 
     def _height_worth(self) -> float:
@@ -659,7 +661,7 @@ class AppearanceIdentity:
         if not linked:
             self._resemble(tid, evidence)
 
-    def _resemble(self, tid: int, evidence: dict[int, tuple[float, ...]]) -> None:
+    def _resemble(self, tid: int, evidence: dict[int, tuple[float, float, float, float]]) -> None:
         """Which pooled identities track ``tid``, which took none, may be the person of.
 
         A track that looked like some (a mean of at least ``reid_mean_llr``, within
@@ -820,7 +822,10 @@ class AppearanceIdentity:
         self.together = dict(rest[1]) if len(rest) > 1 else dict(self.apart)
         self.models = models.copy()
         self.pool, self.links, self.named = pool, dict(links), dict(named)
-        self.reid_ev = {k: dict(v) for k, v in reid_ev.items()}
+        # checkpoints written before faces were averaged apart hold (sum, observations)
+        self.reid_ev = {
+            k: {s: (*e, 0.0, 0.0)[:4] for s, e in v.items()} for k, v in reid_ev.items()
+        }
         self.colour.restore(colour)
         self.face.restore(face)
         if len(rest) > 5:  # checkpoints written before heights were modelled lack them
@@ -854,8 +859,8 @@ def _remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:
     return out
 
 
-def _mean(evidence: tuple[float, ...] | None) -> float:
-    """Mean log-likelihood ratio of ``(sum, observations[, face sum, face observations])``.
+def _mean(evidence: tuple[float, float, float, float] | None) -> float:
+    """Mean log-likelihood ratio of ``(sum, observations, face sum, face observations)``.
 
     ``-inf`` without any evidence. Colours (with heights) and faces are each averaged
     over the observations that carry them, weighted by what they can say (see
@@ -864,11 +869,9 @@ def _mean(evidence: tuple[float, ...] | None) -> float:
     """
     if not evidence:
         return -np.inf
-    out = 0.0
-    for total, n in zip(evidence[0::2], evidence[1::2], strict=True):
-        if n >= MIN_REID_OBSERVATIONS:
-            out += total / n
-    return out
+    total, n, f_total, f_n = evidence
+    colours = total / n if n >= MIN_REID_OBSERVATIONS else 0.0
+    return colours + (f_total / f_n if f_n >= MIN_REID_OBSERVATIONS else 0.0)
 
 
 def _looks_side(
