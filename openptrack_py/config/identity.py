@@ -40,10 +40,17 @@ class IdentityConfig(StrictModel):
     min_observations : int
         Clean observations a track's appearance model needs before it is used.
     model_rate : float
-        Least weight of a new observation in a track's appearance model: the model is
-        the mean of its clean observations, forgetting slowly once it has ``1 /
-        model_rate`` of them (DeepSORT keeps a gallery of the last 100 appearance
-        features per track; 0.01 is that memory).
+        Least weight of a new observation in a track's appearance model, the one
+        association compares detections with: the model is the mean of its clean
+        observations, forgetting slowly once it has ``1 / model_rate`` of them
+        (DeepSORT keeps a gallery of the last 100 appearance features per track; 0.01
+        is that memory): how the person looks now, under the sensors that see them now.
+    visit_rate : float
+        The same for the colour model a lost track leaves in the pool: how the person
+        looked over their visit (a roster entry takes the other: how they look now). 0.002 keeps 500
+        clean observations, with three sensors at 15-30 Hz several seconds and several
+        sensors' colour casts; a memory of 100 describes only the last one to three
+        seconds before they left, walking away under the door's sensor.
     clean_min_confidence : float
         Only detections at least this confident, whose image box overlaps no other
         detection's, teach a track's appearance (a half-hidden person's colours are
@@ -105,6 +112,7 @@ class IdentityConfig(StrictModel):
     max_llr: float = Field(3.0, gt=0.0, le=20.0)
     min_observations: int = Field(3, ge=1, le=1000)
     model_rate: float = Field(0.01, gt=0.0, le=1.0)
+    visit_rate: float = Field(0.002, gt=0.0, le=1.0)
     clean_min_confidence: float = Field(0.5, ge=0.0, le=1.0)
     pool_s: float = Field(180.0, ge=0.0, le=86400.0)
     reid_window_s: float = Field(10.0, gt=0.0, le=3600.0)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from openptrack_py.config import TrackerConfig
+from openptrack_py.config.identity import IdentityConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.messages.detection import Detection, DetectionBatch
 from openptrack_py.tracking import build_tracker
@@ -225,6 +226,32 @@ def test_frames_without_a_clean_colour_do_not_water_down_a_return() -> None:
     out = _leave_and_return(tracker, rng, t, 1000, colour=4, colour_every=4)
     back = [tr for tr in out.tracks if tr.x > 5.0]
     assert len(back) == 1 and back[0].stable_id == before[4]
+
+
+def _seen_last_under_another_light(visit_rate: float) -> tuple[int, int]:
+    """The person in colour 4 is seen, in their last two seconds, in another sensor's cast.
+
+    Returns the stable id they had and the one they come back with.
+    """
+    rng = np.random.default_rng(5)
+    tracker = identity_tracker(visit_rate=visit_rate, height_weight=0.0)
+    out, t = _warm_up(tracker, rng, frames=450)
+    before = {round(tr.y): tr.stable_id for tr in out.tracks}
+    for k in range(60):  # by the door, under a sensor that renders their hue two bins off
+        hues = (1, 6, 7)  # person 1's 4 seen as 6
+        dets = tuple(person(1.0, 2.0 + 2.5 * i, look(hues[i], rng)) for i in range(3))
+        tracker.step(batch(t + k * FRAME, dets, 500 + k, sensor="s1"))
+    out = _leave_and_return(tracker, rng, t + 60 * FRAME, 1000, colour=4)
+    (back,) = [tr for tr in out.tracks if tr.x > 5.0]
+    return before[4], back.stable_id
+
+
+def test_a_pooled_look_describes_the_visit_not_the_last_seconds() -> None:
+    """A model that remembered only the last 100 looks would pool the door's light."""
+    left, back = _seen_last_under_another_light(IdentityConfig().visit_rate)
+    assert back == left
+    left, back = _seen_last_under_another_light(0.01)
+    assert back != left
 
 
 def test_a_person_missed_at_one_return_is_taken_back_at_the_next() -> None:
@@ -526,11 +553,13 @@ def test_a_checkpoint_from_before_heights_restores_without_them() -> None:
     _warm_up(tracker, rng)
     old = tracker.identity.snapshot()
     models = old[0]
-    del models.__dict__["hgt"], models.__dict__["hgt_n"]  # as an older version wrote them
+    for name in ("hgt", "hgt_n", "visit"):  # as an older version wrote them
+        del models.__dict__[name]
     restarted = identity_tracker()
     restarted.identity.restore(pickle.loads(pickle.dumps(old[:10])))
     m = restarted.identity.models
     assert m.hgt.shape == m.hgt_n.shape == (len(m),) and not m.hgt_n.any()
+    np.testing.assert_array_equal(m.visit, m.sig)  # the visit's colours start as the model
     assert not restarted.identity.stature.ready
     _warm_up(restarted, rng, frames=60, k0=300, t0=T0 + 300 * FRAME)  # and it runs on
     assert restarted.identity.models.hgt_n.max() > 0

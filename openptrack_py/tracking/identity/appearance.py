@@ -257,7 +257,9 @@ class AppearanceIdentity:
                     use & confirmed, far, others, table.confirmed, "hellinger",
                 )
             )  # fmt: skip
-            m.learn_colour(mrows[use], looks.signature[cols[use]], self.cfg.model_rate)
+            m.learn_colour(
+                mrows[use], looks.signature[cols[use]], self.cfg.model_rate, self.cfg.visit_rate
+            )
         if fit_e:
             use = looks.embedding_weight[cols] > 0
             ready = m.emb_w > 0
@@ -346,7 +348,7 @@ class AppearanceIdentity:
                 born = float(m.born[mr]) if began is None else began
                 pooled.append(
                     PooledIdentity(
-                        stable=int(m.stable[mr]), sig=m.sig[mr].copy(), sig_n=float(m.sig_n[mr]),
+                        stable=int(m.stable[mr]), sig=m.visit[mr].copy(), sig_n=float(m.sig_n[mr]),
                         emb=m.emb[mr].copy(), emb_w=float(m.emb_w[mr]),
                         xy=table.recent_xy[row].copy(), lost_at=float(table.last_seen[row]),
                         name_ev=m.name_ev[mr].copy(), impostor=self._impostor(mr),
@@ -507,12 +509,18 @@ class AppearanceIdentity:
             out += cfg.height_weight * llr * (a.hgt_ok[:, None] & b.hgt_ok[None, :])
         return out
 
-    def _models_side(self, rows: np.ndarray, settled: np.ndarray | None = None) -> _Side:
-        """Track models ``rows``; colours count where ``settled`` (default: enough seen)."""
+    def _models_side(
+        self, rows: np.ndarray, settled: np.ndarray | None = None, visit: bool = False
+    ) -> _Side:
+        """Track models ``rows``; colours count where ``settled`` (default: enough seen).
+
+        ``visit``: their colours over the visit (as pooled), not as they look now.
+        """
         m = self.models
         if settled is None:
             settled = m.sig_n[rows] >= self.cfg.min_observations
-        side = _Side(m.sig[rows], settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float))
+        sig = (m.visit if visit else m.sig)[rows]
+        side = _Side(sig, settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float))
         if not self._uses_heights:
             return side
         return replace(side, hgt=m.hgt[rows], hgt_ok=m.hgt_n[rows] >= self.cfg.min_observations)
@@ -750,7 +758,9 @@ class AppearanceIdentity:
         """
         rows = self.models.rows(np.array(cands, dtype=np.int64))
         everything = np.ones(len(rows), dtype=bool)  # a candidate's colours always count
-        out = self._pair_llr(self._models_side(rows, everything), self._pool_side(self.pool))
+        out = self._pair_llr(
+            self._models_side(rows, everything, visit=True), self._pool_side(self.pool)
+        )
         pool = self.pool
         impostor = np.array([e.impostor for e in pool])
         return out >= impostor[None] + self.cfg.reid_margin
@@ -767,7 +777,10 @@ class AppearanceIdentity:
         if not len(others):
             return -np.inf
         return float(
-            self._pair_llr(self._models_side(np.array([row])), self._models_side(others)).max()
+            self._pair_llr(
+                self._models_side(np.array([row]), visit=True),
+                self._models_side(others, visit=True),
+            ).max()
         )
 
     def _name(self, table: TrackTable) -> None:

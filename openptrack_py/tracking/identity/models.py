@@ -26,6 +26,9 @@ class TrackModels:
         Track id of each row.
     sig, sig_n : ndarray
         Colour model ``(n, B)`` (summing to 1) and the clean signatures it averages.
+    visit : ndarray
+        ``(n, B)`` the same signatures averaged with a longer memory: the look a lost
+        track leaves in the pool.
     emb, emb_w : ndarray
         Embedding model ``(n, D)`` (unit rows once any was seen) and its weight.
     hgt, hgt_n : ndarray
@@ -44,6 +47,7 @@ class TrackModels:
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_INT))
     sig: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     sig_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    visit: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     emb: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     emb_w: np.ndarray = field(default_factory=lambda: np.zeros(0))
     hgt: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -54,7 +58,7 @@ class TrackModels:
     name_ev: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     COLUMNS = (
-        "ids", "sig", "sig_n", "emb", "emb_w", "hgt", "hgt_n", "stable", "own", "born",
+        "ids", "sig", "sig_n", "visit", "emb", "emb_w", "hgt", "hgt_n", "stable", "own", "born",
         "name_ev",
     )  # fmt: skip
 
@@ -62,10 +66,11 @@ class TrackModels:
         return len(self.ids)
 
     def __setstate__(self, state: dict[str, object]) -> None:
-        # a checkpoint written before heights were modelled
+        # a checkpoint written before heights, or the visit's colours, were modelled
         self.__dict__.update(state)
         for name in ("hgt", "hgt_n"):
             self.__dict__.setdefault(name, np.zeros(len(self.ids)))
+        self.__dict__.setdefault("visit", self.sig.copy())
 
     def copy(self) -> TrackModels:
         """An independent copy."""
@@ -87,6 +92,7 @@ class TrackModels:
         self.ids = np.concatenate([self.ids, ids.astype(_INT)])
         self.sig = np.vstack([self.sig, np.zeros((n, self.sig.shape[1]))])
         self.sig_n = np.concatenate([self.sig_n, np.zeros(n)])
+        self.visit = np.vstack([self.visit, np.zeros((n, self.visit.shape[1]))])
         self.emb = np.vstack([self.emb, np.zeros((n, self.emb.shape[1]))])
         self.emb_w = np.concatenate([self.emb_w, np.zeros(n)])
         self.hgt = np.concatenate([self.hgt, np.zeros(n)])
@@ -111,12 +117,20 @@ class TrackModels:
         """
         if self.sig.shape[1] == 0 and sig_dim:
             self.sig = np.zeros((len(self), sig_dim))
+            self.visit = np.zeros((len(self), sig_dim))
         if self.emb.shape[1] == 0 and emb_dim:
             self.emb = np.zeros((len(self), emb_dim))
         return self.sig.shape[1] == sig_dim > 0, self.emb.shape[1] == emb_dim > 0
 
-    def learn_colour(self, rows: np.ndarray, sigs: np.ndarray, rate: float) -> None:
-        """Average clean signatures ``sigs`` into the colour models of ``rows``."""
+    def learn_colour(
+        self, rows: np.ndarray, sigs: np.ndarray, rate: float, visit_rate: float
+    ) -> None:
+        """Average clean signatures ``sigs`` into the colour models of ``rows``.
+
+        ``rate`` for the model association uses, ``visit_rate`` for the visit's.
+        """
+        r = np.maximum(visit_rate, 1.0 / (self.sig_n[rows] + 1.0))[:, None]
+        self.visit[rows] = (1.0 - r) * self.visit[rows] + r * sigs
         _average_into(self.sig, self.sig_n, rows, sigs, rate)
 
     def learn_height(self, rows: np.ndarray, heights: np.ndarray, rate: float) -> None:
