@@ -129,7 +129,7 @@ class TrackModels:
 
         ``rate`` for the model association uses, ``visit_rate`` for the visit's.
         """
-        r = np.maximum(visit_rate, 1.0 / (self.sig_n[rows] + 1.0))[:, None]
+        r = _weight(self.sig_n[rows], visit_rate, sigs.ndim)
         self.visit[rows] = (1.0 - r) * self.visit[rows] + r * sigs
         _average_into(self.sig, self.sig_n, rows, sigs, rate)
 
@@ -169,9 +169,17 @@ def _average_into(
     ``rate`` (a model that follows slow changes).
     """
     n = count[rows]
-    r = np.maximum(rate, 1.0 / (n + 1.0)).reshape((-1,) + (1,) * (values.ndim - 1))
+    r = _weight(n, rate, values.ndim)
     model[rows] = (1.0 - r) * model[rows] + r * values
     count[rows] = n + 1.0
+
+
+def _weight(count: np.ndarray, rate: float, ndim: int) -> np.ndarray:
+    """Weight of the next value in a model averaging ``count`` values so far, at ``rate``.
+
+    Shaped to broadcast over values of ``ndim`` dimensions (one row per value).
+    """
+    return np.maximum(rate, 1.0 / (count + 1.0)).reshape((-1,) + (1,) * (ndim - 1))
 
 
 @dataclass(frozen=True)
