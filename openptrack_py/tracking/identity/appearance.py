@@ -12,8 +12,9 @@
   detection in the image (a half-hidden person's colours are the neighbour's too).
 * **Re-identification** (OpenPTrack v2's pool of lost faces, norfair's dead tracks kept
   for re-identification): a confirmed track that ends leaves its identity in a pool for
-  ``pool_s``; a young track gathers evidence for each pooled identity it could be
-  (one it could have walked to since), and takes one back once, after ``reid_min_s``,
+  ``pool_s``, with its colours over the visit (a longer memory than association's); a
+  young track gathers evidence for each pooled identity it could be (one it could have
+  walked to since), and takes one back once, after ``reid_min_s``,
   its mean log-likelihood ratio (colours and faces each averaged over the observations
   that carry them, the two means added) passes ``reid_mean_llr`` and beats every rival by
   ``reid_margin``, one-to-one (Hungarian). Evidence keeps coming in during the track's
