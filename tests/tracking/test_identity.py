@@ -50,6 +50,11 @@ def person(x, y, sig, conf=0.9, u=None, face=None, height=1.75):
     )  # fmt: skip
 
 
+def walker(i: int, t: float, sig, **kw) -> Detection:
+    """Person ``i`` of a scene's row of people, each swaying along their own line."""
+    return person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, sig, **kw)
+
+
 def batch(t, dets, k, sensor="s0"):
     return DetectionBatch(sensor_id=sensor, seq=k, stamp=t, frame_id="world", detections=dets)
 
@@ -64,10 +69,7 @@ def _warm_up(tracker, rng, frames=300, k0=0, t0=T0):
     out = None
     for k in range(frames):
         t = t0 + k * FRAME
-        dets = tuple(
-            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(3 * i + 1, rng))
-            for i in range(3)
-        )
+        dets = tuple(walker(i, t, look(3 * i + 1, rng)) for i in range(3))
         out = tracker.step(batch(t, dets, k0 + k))
     return out, t0 + frames * FRAME
 
@@ -237,8 +239,8 @@ def _seen_last_under_another_light(visit_rate: float) -> tuple[int, int]:
     tracker = identity_tracker(visit_rate=visit_rate, height_weight=0.0)
     out, t = _warm_up(tracker, rng, frames=450)
     before = {round(tr.y): tr.stable_id for tr in out.tracks}
+    hues = (1, 6, 7)  # person 1's 4 seen as 6
     for k in range(60):  # by the door, under a sensor that renders their hue two bins off
-        hues = (1, 6, 7)  # person 1's 4 seen as 6
         dets = tuple(person(1.0, 2.0 + 2.5 * i, look(hues[i], rng)) for i in range(3))
         tracker.step(batch(t + k * FRAME, dets, 500 + k, sensor="s1"))
     out = _leave_and_return(tracker, rng, t + 60 * FRAME, 1000, colour=4)
@@ -295,12 +297,7 @@ def test_a_look_alike_does_not_replace_two_people_who_were_there_together() -> N
     colours = (4, 4, 13, 16)
 
     def frame(t, k, who, extra=()):
-        dets = tuple(
-            person(
-                1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(colours[i], rng)
-            )
-            for i in who
-        )
+        dets = tuple(walker(i, t, look(colours[i], rng)) for i in who)
         return tracker.step(batch(t, dets + extra, k))
 
     for k in range(300):
@@ -330,8 +327,7 @@ def _alike_but_not_as_tall(tracker, rng, back_height, **kw) -> tuple[int, int]:
 
     def frame(t, k, who, extra=()):
         dets = tuple(
-            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(7, rng),
-                   height=heights[i] + rng.normal(0.0, 0.02))
+            walker(i, t, look(7, rng), height=heights[i] + rng.normal(0.0, 0.02))
             for i in who
         ) + extra  # fmt: skip
         return tracker.step(batch(t, dets, k))
@@ -459,10 +455,7 @@ def test_lookalikes_registered_from_their_own_tracks_keep_their_names(tmp_path: 
     uniform = 7  # ada and her twin dress alike (bo and cy are as before)
 
     def step(t: float, k: int):
-        dets = tuple(
-            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(c, rng))
-            for i, c in enumerate((uniform, 4, uniform))
-        )
+        dets = tuple(walker(i, t, look(c, rng)) for i, c in enumerate((uniform, 4, uniform)))
         return tracker.step(batch(t, dets, k))
 
     t0 = T0 + 300 * FRAME
@@ -783,10 +776,8 @@ def test_names_survive_a_late_batch_replay_from_before_the_roster_changed(
     keeper = RosterKeeper(tmp_path / "roster.yaml")
 
     def dets(t: float) -> tuple[Detection, ...]:
-        return tuple(
-            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(c, rng))
-            for i, c in enumerate((7, 4, 7))  # the first and the last dress alike
-        )
+        # the first and the last dress alike
+        return tuple(walker(i, t, look(c, rng)) for i, c in enumerate((7, 4, 7)))
 
     for k in range(300, 600):
         out = tracker.step(batch(T0 + k * FRAME, dets(T0 + k * FRAME), k))
@@ -845,7 +836,7 @@ def test_a_return_seen_by_another_sensor_than_the_leaving_is_recognised_by_heigh
 
     def frame(t, k, sensor, who, extra=()):
         dets = tuple(
-            person(1.0 + 0.8 * i + 0.3 * math.sin(t - T0 + i), 2.0 + 2.5 * i, look(7, rng),
+            walker(i, t, look(7, rng),
                    height=heights[i] + offset[sensor] + rng.normal(0.0, 0.02))
             for i in who
         ) + extra  # fmt: skip

@@ -14,9 +14,9 @@
   for re-identification): a confirmed track that ends leaves its identity in a pool for
   ``pool_s``, with its colours over the visit (a longer memory than association's); a
   young track gathers evidence for each pooled identity it could be (one it could have
-  walked to since), and takes one back once, after ``reid_min_s``,
-  its mean log-likelihood ratio (colours and faces each averaged over the observations
-  that carry them, the two means added) passes ``reid_mean_llr`` and beats every rival by
+  walked to since), and takes one back once, after ``reid_min_s``, its mean
+  log-likelihood ratio (colours and faces each averaged over the observations that carry
+  them, the two means added) passes ``reid_mean_llr`` and beats every rival by
   ``reid_margin``, one-to-one (Hungarian). Evidence keeps coming in during the track's
   first ``reid_window_s``; a link it contradicts is undone and the identity goes back to
   the pool. A person the pool missed once (back under a new identity) would leave two
@@ -68,7 +68,8 @@ NAME_EVIDENCE_BOUND = 4.0
 """A track's evidence for a name stays within this many times ``link_evidence``."""
 MIN_REID_OBSERVATIONS = 10
 """Observations of a young track against a pooled identity before their mean counts."""
-_NO_EVIDENCE = (0.0, 0.0, 0.0, 0.0)
+_Evidence = tuple[float, float, float, float]
+_NO_EVIDENCE: _Evidence = (0.0, 0.0, 0.0, 0.0)
 """A young track's evidence against a pooled identity before any observation: the sum and
 weight of its colour log-likelihood ratios, then of its face ones."""
 DISTINCT_OBSERVATIONS = 10
@@ -123,7 +124,7 @@ class AppearanceIdentity:
         self.models = TrackModels()
         self.pool: tuple[PooledIdentity, ...] = ()
         self.links: dict[int, PooledIdentity] = {}
-        self.reid_ev: dict[int, dict[int, tuple[float, float, float, float]]] = {}
+        self.reid_ev: dict[int, dict[int, _Evidence]] = {}
         self.named: dict[int, int] = {}
         self.resembled: dict[int, tuple[int, ...]] = {}
         self.since: dict[int, float] = {}  # linked tracks: when their identity began
@@ -670,7 +671,7 @@ class AppearanceIdentity:
         if not linked:
             self._resemble(tid, evidence)
 
-    def _resemble(self, tid: int, evidence: dict[int, tuple[float, float, float, float]]) -> None:
+    def _resemble(self, tid: int, evidence: dict[int, _Evidence]) -> None:
         """Which pooled identities track ``tid``, which took none, may be the person of.
 
         A track that looked like some (a mean of at least ``reid_mean_llr``, within
@@ -873,7 +874,7 @@ def _remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:
     return out
 
 
-def _mean(evidence: tuple[float, float, float, float] | None) -> float:
+def _mean(evidence: _Evidence | None) -> float:
     """Mean log-likelihood ratio of ``(sum, observations, face sum, face observations)``.
 
     ``-inf`` without any evidence. Colours (with heights) and faces are each averaged
