@@ -17,7 +17,7 @@ sensors            ``correct`` / ``noise_scale`` / ``covers`` / ``learn``: Onlin
                    what is learned about each sensor
 merger             ``observe`` / ``merge`` / ``reattach``: one person,   TrackMerger
                    one track
-identity           ``cost`` / ``observe`` / ``distinct`` / ``annotate``:  NullIdentity
+identity           ``cost`` / ``observe`` / ``distinct`` / ``labels``:    NullIdentity
                    who a track is
 =================  ===================================================  ==============
 
@@ -35,7 +35,6 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from openptrack_py.messages.track import Track
 from openptrack_py.tracking.sensor_model import SensorUpdates
 from openptrack_py.tracking.state import DetectionArrays, TrackTable
 
@@ -248,5 +247,5 @@ class IdentityModel(Protocol):
         its own recently enough, and the detection does not look like the partner alone).
         """
 
-    def annotate(self, tracks: list[Track]) -> list[Track]:
-        """The output tracks with their ``stable_id`` / ``identity`` filled in."""
+    def labels(self, ids: np.ndarray) -> tuple[list[int | None], list[str | None]]:
+        """Per published track id: its ``stable_id`` and its name (``None``: none)."""

@@ -8,6 +8,8 @@ in its detections, times its support, fading to 0 over ``confidence_decay_s`` un
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from openptrack_py.messages.track import Track, Visibility
@@ -15,8 +17,16 @@ from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.state import TrackTable
 
 
-def published_tracks(tb: TrackTable, t: float, params: TrackerParams) -> list[Track]:
-    """The tracks of ``tb`` to publish at time ``t``."""
+def published_tracks(
+    tb: TrackTable,
+    t: float,
+    params: TrackerParams,
+    labels: Callable[[np.ndarray], tuple[list[int | None], list[str | None]]],
+) -> list[Track]:
+    """The tracks of ``tb`` to publish at time ``t``.
+
+    ``labels``: per published track id, its ``stable_id`` and name (the identity role's).
+    """
     unseen = t - tb.last_seen
     shown = (unseen <= params.publish_unseen_s) & (tb.support >= params.publish_min_support)
     if not params.publish_tentative:
@@ -24,6 +34,7 @@ def published_tracks(tb: TrackTable, t: float, params: TrackerParams) -> list[Tr
     rows = np.flatnonzero(shown)
     fresh = np.clip(1.0 - unseen[rows] / params.confidence_decay_s, 0.0, 1.0)
     evidence = tb.confidence[rows] * tb.support[rows] * fresh
+    stable, names = labels(tb.ids[rows])
     columns = zip(
         tb.ids[rows].tolist(),
         tb.x[rows].tolist(),
@@ -33,6 +44,8 @@ def published_tracks(tb: TrackTable, t: float, params: TrackerParams) -> list[Tr
         np.clip(evidence, 0.0, 1.0).tolist(),
         (unseen[rows] <= params.visibility_timeout_s).tolist(),
         tb.confirmed[rows].tolist(),
+        stable,
+        names,
         strict=True,
     )
     return [
@@ -48,6 +61,8 @@ def published_tracks(tb: TrackTable, t: float, params: TrackerParams) -> list[Tr
             confidence=conf,
             visibility=Visibility.VISIBLE if visible else Visibility.NOT_VISIBLE,
             confirmed=confirmed,
+            stable_id=stable_id,
+            identity=name,
         )
-        for ident, x, z, height, age, conf, visible, confirmed in columns
+        for ident, x, z, height, age, conf, visible, confirmed, stable_id, name in columns
     ]

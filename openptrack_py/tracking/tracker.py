@@ -247,14 +247,14 @@ class Tracker:
         ``source`` names the batch the step applied (sensor id, ``seq``, stamp).
         """
         self.seq += 1
-        tracks = published_tracks(self.table, t, self.params)
+        tracks = published_tracks(self.table, t, self.params, self.identity.labels)
         ids = tuple(tr.id for tr in tracks)
         self.max_published_id = max(self.max_published_id, *ids, 0)
         return TrackBatch(
             stamp=t,
             seq=self.seq,
             frame_id=self.frame_id,
-            tracks=tuple(self.identity.annotate(tracks)),
+            tracks=tuple(tracks),
             alive_ids=ids,
             max_id=self.max_published_id,
             source=source,

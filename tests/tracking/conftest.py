@@ -8,12 +8,11 @@ parts beyond their interface.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
 
-from openptrack_py.messages.track import Track
 from openptrack_py.tracking import (
     DetectionArrays,
     NullIdentity,
@@ -187,11 +186,9 @@ class ForgetfulIdentity(NullIdentity):
         for ident in table.ids[rows].tolist():
             self.counts.pop(ident, None)
 
-    def annotate(self, tracks: list[Track]) -> list[Track]:
-        return [
-            replace(tr, stable_id=tr.id + 10_000, identity=f"seen{self.counts.get(tr.id, 0)}")
-            for tr in tracks
-        ]
+    def labels(self, ids: np.ndarray) -> tuple[list[int], list[str]]:
+        ids = ids.tolist()
+        return [i + 10_000 for i in ids], [f"seen{self.counts.get(i, 0)}" for i in ids]
 
 
 class CountingIdentity(ForgetfulIdentity):

@@ -70,7 +70,7 @@ def test_default_roles_are_the_configured_ones() -> None:
     stateful = [role for role in tracker.roles if isinstance(role, Stateful)]
     assert stateful == [tracker.sensors, tracker.merger]
     identity: IdentityModel = tracker.identity
-    assert identity.annotate([]) == []
+    assert identity.labels(np.array([3, 5])) == ([None, None], [None, None])
 
 
 def test_identity_annotations_reach_the_output() -> None:

@@ -47,7 +47,6 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from openptrack_py.config.identity import IdentityConfig
-from openptrack_py.messages.track import Track
 from openptrack_py.tracking.identity.heights import HeightBias
 from openptrack_py.tracking.identity.likelihood import (
     ISOLATION_M,
@@ -448,25 +447,16 @@ class AppearanceIdentity:
             self.together[pairs[k]] = t
         return ok
 
-    def annotate(self, tracks: list[Track]) -> list[Track]:
-        """Each track with its ``stable_id`` and, when named, ``identity``."""
-        if not tracks:
-            return tracks
-        ids = np.array([tr.id for tr in tracks], dtype=np.int64)
+    def labels(self, ids: np.ndarray) -> tuple[list[int], list[str | None]]:
+        """Per track of ``ids``: its ``stable_id`` and, when named, its name."""
         rows = self.models.rows(ids)
-        stable = self.models.stable
+        stable = ids.copy()
+        stable[rows >= 0] = self.models.stable[rows[rows >= 0]]
         names = self.roster.names
-        out = []
-        for tr, row in zip(tracks, rows.tolist(), strict=True):
-            k = self.named.get(tr.id)
-            out.append(
-                replace(
-                    tr,
-                    stable_id=int(stable[row]) if row >= 0 else tr.id,
-                    identity=names[k] if k is not None and k < len(names) else None,
-                )
-            )
-        return out
+        named = (self.named.get(i) for i in ids.tolist())
+        return stable.tolist(), [
+            names[k] if k is not None and k < len(names) else None for k in named
+        ]
 
     # --------------------------------------------------------------- learning
 
@@ -476,9 +466,10 @@ class AppearanceIdentity:
         Per detection: which tracks are far (certainly someone else), and whether no
         other track is within ``share_distance_m`` (alone).
         """
-        gap = np.linalg.norm(xy[:, None, :] - table.x[None, :, 0:2], axis=2)
-        far = gap > ISOLATION_M
-        alone = (gap <= self.cfg.share_distance_m).sum(axis=1) <= 1
+        d = xy[:, None, :] - table.x[None, :, 0:2]
+        gap2 = d[..., 0] ** 2 + d[..., 1] ** 2
+        far = gap2 > ISOLATION_M**2
+        alone = np.count_nonzero(gap2 <= self.cfg.share_distance_m**2, axis=1) <= 1
         return far, alone
 
     def _pair_llr(self, a: _Side, b: _Side) -> np.ndarray:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from openptrack_py.messages.track import Track
 from openptrack_py.tracking.state import DetectionArrays, TrackTable
 
 
@@ -59,6 +58,6 @@ class NullIdentity:
         """No track shares another's detection."""
         return np.zeros(len(lonely), dtype=bool)
 
-    def annotate(self, tracks: list[Track]) -> list[Track]:
-        """The tracks unchanged."""
-        return tracks
+    def labels(self, ids: np.ndarray) -> tuple[list[None], list[None]]:
+        """No ``stable_id`` and no name for any track."""
+        return [None] * len(ids), [None] * len(ids)
