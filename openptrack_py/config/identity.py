@@ -51,7 +51,9 @@ class IdentityConfig(StrictModel):
         0.002 keeps 500 clean observations, with three sensors at 15-30 Hz several
         seconds and several sensors' colour casts; a memory of 100 describes only the
         last one to three seconds before they left, walking away under the door's
-        sensor.
+        sensor. Heights have this memory only (one model, for association and the
+        pool): a height does not change with the light, and a person seen lower for a
+        moment (bending to pick up a bag on the way out) must not pool the stoop.
     clean_min_confidence : float
         Only detections at least this confident, whose image box overlaps no other
         detection's, teach a track's appearance (a half-hidden person's colours are

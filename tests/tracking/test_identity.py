@@ -319,11 +319,12 @@ def test_a_look_alike_does_not_replace_two_people_who_were_there_together() -> N
     assert len(alike) == 2 and alike <= pooled and stranger.id in pooled
 
 
-def _alike_but_not_as_tall(tracker, rng, back_height, **kw) -> tuple[int, int]:
+def _alike_but_not_as_tall(tracker, rng, back_height, stoop_m=0.0) -> tuple[int, int]:
     """Three people dressed alike, 1.55, 1.75 and 1.95 m tall; the middle one leaves
     and someone ``back_height`` tall comes back. Returns the middle one's stable id and
-    the stable id of whoever came back."""
-    heights = (1.55, 1.75, 1.95)
+    the stable id of whoever came back. ``stoop_m``: how much lower the middle one is
+    seen in their last 2 s (bending to pick up a bag on the way out)."""
+    heights = [1.55, 1.75, 1.95]
 
     def frame(t, k, who, extra=()):
         dets = tuple(
@@ -333,6 +334,8 @@ def _alike_but_not_as_tall(tracker, rng, back_height, **kw) -> tuple[int, int]:
         return tracker.step(batch(t, dets, k))
 
     for k in range(300):
+        if k == 240:
+            heights[1] -= stoop_m
         out = frame(T0 + k * FRAME, k, (0, 1, 2))
     before = min(out.tracks, key=lambda tr: abs(tr.y - 4.5)).stable_id
     t = T0 + 300 * FRAME
@@ -353,6 +356,19 @@ def test_height_brings_back_a_person_whose_colours_tell_nothing() -> None:
     tracker = identity_tracker(height_weight=0.0)
     before, back = _alike_but_not_as_tall(tracker, np.random.default_rng(21), 1.75)
     assert back != before
+
+
+def test_a_pooled_height_is_the_visits_not_the_last_seconds() -> None:
+    """A model that remembered only the last 100 heights would pool the stoop."""
+    pooled = {}
+    for rate in (IdentityConfig().visit_rate, 0.01):
+        tracker = identity_tracker(visit_rate=rate)
+        before, back = _alike_but_not_as_tall(tracker, np.random.default_rng(21), 1.75, 0.25)
+        assert back == before
+        (entry,) = tracker.identity.links.values()
+        pooled[rate] = entry.hgt
+    assert abs(pooled[IdentityConfig().visit_rate] - 1.75) < 0.06
+    assert pooled[0.01] < 1.66  # closer to the stoop's 1.50 than to 1.75
 
 
 def test_someone_of_another_height_does_not_take_a_pooled_identity() -> None:

@@ -317,7 +317,7 @@ class AppearanceIdentity:
                 "height",
             )
         )  # fmt: skip
-        m.learn_height(mrows[clean], heights[clean], self.cfg.model_rate)
+        m.learn_height(mrows[clean], heights[clean], self.cfg.visit_rate)
         return heights
 
     def ended(

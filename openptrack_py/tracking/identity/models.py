@@ -32,8 +32,8 @@ class TrackModels:
     emb, emb_w : ndarray
         Embedding model ``(n, D)`` (unit rows once any was seen) and its weight.
     hgt, hgt_n : ndarray
-        Height model (the average of the clean detections' heights, metres) and the
-        heights it averages.
+        Height model (the average of the clean detections' heights, metres, with the
+        visit's memory) and the heights it averages.
     stable : ndarray of int
         The identity published as ``stable_id``.
     own : ndarray of bool
