@@ -41,7 +41,8 @@ from openptrack_py.eval.runner import Hypotheses, TrackerFeed, evaluate
 from openptrack_py.eval.trackers import tracking_feed
 from openptrack_py.messages.ground_truth import GroundTruthFrame
 from openptrack_py.sim.scenarios import build_scenario
-from openptrack_py.tracking.identity import AppearanceIdentity, Roster, RosterEntry
+from openptrack_py.tracking.identity import AppearanceIdentity, Roster
+from openptrack_py.tracking.identity.roster import entry_from_looks
 
 ROOT = Path(__file__).resolve().parent.parent
 SEEDS = (31, 32, 33)
@@ -155,14 +156,8 @@ def _register(seed: int, embeddings: bool) -> Roster:
         looks = identity.looks_of(by_stable.get(int(hyp.ids[c]), -1))
         if dist[r, c] > MATCH_M or looks is None:
             continue
-        sig, n, emb = looks
         entries.append(
-            RosterEntry(
-                f"p{people[r].id}",
-                tuple(sig.tolist()) if n >= 3 else (),
-                tuple(emb.tolist()) if emb.any() else (),
-                int(n),
-            )
+            entry_from_looks(f"p{people[r].id}", looks, identity.cfg.min_observations, "")
         )
     return Roster(tuple(e for e in entries if e.signature or e.embedding))
 

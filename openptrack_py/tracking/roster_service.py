@@ -18,7 +18,6 @@ use is kept.
 from __future__ import annotations
 
 import time
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +29,7 @@ from openptrack_py.tracking.identity import (
     load_roster,
     save_roster,
 )
-from openptrack_py.tracking.identity.roster import check_name
+from openptrack_py.tracking.identity.roster import check_name, entry_from_looks
 
 ROSTER_KEY = "roster"
 """The ``set`` key of a roster request."""
@@ -128,20 +127,13 @@ class RosterKeeper:
         looks = identity.looks_of(track)
         if looks is None:
             raise ConfigError(f"roster: no track {track} (is the person in view?)")
-        sig, count, emb = looks
         enough = identity.cfg.min_observations
-        if count < enough and not emb.any():
+        if looks.observations < enough and not looks.embedding.any():
             raise ConfigError(
-                f"roster: track {track} has {int(count)} clean observations of the "
-                f"{enough} needed; let the person stand in view a little longer"
+                f"roster: track {track} has {int(looks.observations)} clean observations "
+                f"of the {enough} needed; let the person stand in view a little longer"
             )
-        return RosterEntry(
-            name=name,
-            signature=tuple(sig.tolist()) if count >= enough else (),
-            embedding=tuple(emb.tolist()) if emb.any() else (),
-            observations=int(count),
-            added=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        )
+        return entry_from_looks(name, looks, enough)
 
     def reload_if_changed(self, identity: object) -> str | None:
         """Load the file again if it changed; return an error message if it is invalid."""

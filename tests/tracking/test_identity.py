@@ -26,6 +26,7 @@ from openptrack_py.tracking.identity.heights import HeightBias
 from openptrack_py.tracking.identity.likelihood import DistanceLikelihood, hellinger
 from openptrack_py.tracking.identity.models import PooledIdentity
 from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
+from openptrack_py.tracking.identity.roster import entry_from_looks
 from openptrack_py.tracking.roster_service import RosterKeeper, roster_request
 from openptrack_py.tracking.state import Looks
 from tests.tracking.helpers import FRAME, T0
@@ -422,8 +423,10 @@ def test_stable_ids_are_never_on_two_tracks_at_once() -> None:
 def _roster_of(tracker) -> Roster:
     entries = []
     for tid, name in ((1, "ada"), (2, "bo"), (3, "cy")):
-        sig, n, _ = tracker.identity.looks_of(tid)
-        entries.append(RosterEntry(name, tuple(sig.tolist()), (), int(n)))
+        looks = tracker.identity.looks_of(tid)
+        entries.append(
+            RosterEntry(name, tuple(looks.signature.tolist()), (), int(looks.observations))
+        )
     return Roster(tuple(entries))
 
 
@@ -461,6 +464,42 @@ def test_a_lookalike_in_the_roster_leaves_the_track_unnamed_not_named_by_a_coin_
     # long enough for the evidence to reach its bound: bo's margin over the cousin
     # must survive it (clipping both names at the bound erased it)
     assert {round(tr.y): tr.identity for tr in out.tracks} == {2: None, 4: "bo", 7: "cy"}
+
+
+def _dressed_alike_named(height_weight: float) -> dict[int, str | None]:
+    """Three people in one uniform, 1.55, 1.75 and 1.95 m tall, registered from their
+    own tracks, then seen by a fresh tracker: the names it gives, by row."""
+    heights = (1.55, 1.75, 1.95)
+
+    def walk(tracker, rng, frames):
+        for k in range(frames):
+            t = T0 + k * FRAME
+            dets = tuple(
+                walker(i, t, look(7, rng), height=heights[i] + rng.normal(0.0, 0.02))
+                for i in range(3)
+            )  # fmt: skip
+            out = tracker.step(batch(t, dets, k))
+        return out
+
+    rng = np.random.default_rng(13)
+    tracker = identity_tracker(height_weight=height_weight)
+    out = walk(tracker, rng, 300)
+    enough = tracker.identity.cfg.min_observations
+    roster = Roster(
+        tuple(
+            entry_from_looks(f"p{round(tr.y)}", tracker.identity.looks_of(tr.id), enough)
+            for tr in out.tracks
+        )
+    )  # fmt: skip
+    fresh = identity_tracker(height_weight=height_weight)
+    fresh.identity.set_roster(roster)
+    return {round(tr.y): tr.identity for tr in walk(fresh, rng, 600).tracks}
+
+
+def test_registered_heights_tell_apart_people_dressed_alike() -> None:
+    assert _dressed_alike_named(1.0) == {2: "p2", 4: "p4", 7: "p7"}
+    # colours alone: three registered look-alikes, nobody named by a coin toss
+    assert _dressed_alike_named(0.0) == {2: None, 4: None, 7: None}
 
 
 def test_lookalikes_registered_from_their_own_tracks_keep_their_names(tmp_path: Path) -> None:
@@ -506,6 +545,12 @@ def test_roster_file_roundtrip_and_errors(tmp_path: Path) -> None:
     path.write_text("version: 1\npeople:\n  - {name: a, signature: [.nan]}\n")
     with pytest.raises(ConfigError, match="finite"):
         load_roster(path)
+    path.write_text("version: 1\npeople:\n  - {name: a, signature: [1], height: 25}\n")
+    with pytest.raises(ConfigError, match=r"people\[0\]\.height: expected metres from 0.5"):
+        load_roster(path)
+    tall = Roster((RosterEntry("Bo", (1.0,), height=1.82),))
+    save_roster(tall, path)
+    assert load_roster(path) == tall and "height: 1.82" in path.read_text()
 
 
 # ------------------------------------------------------------- replay, checkpoint

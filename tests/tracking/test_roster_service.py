@@ -27,6 +27,7 @@ def _identity_with_a_track(observations: float = 10.0) -> AppearanceIdentity:
     role.models.fit_dims(4, 0)
     role.models.sig[0] = [0.1, 0.2, 0.3, 0.4]
     role.models.sig_n[0] = observations
+    role.models.hgt[0], role.models.hgt_n[0] = 1.7234, observations
     return role
 
 
@@ -37,6 +38,7 @@ def test_add_captures_the_tracks_looks_into_the_file(tmp_path: Path) -> None:
     assert [p["name"] for p in listing["roster"]] == ["Ada"]
     saved = load_roster(path)
     assert saved.names == ("Ada",) and saved.people[0].signature == (0.1, 0.2, 0.3, 0.4)
+    assert saved.people[0].height == 1.723
     assert role.roster == saved
     assert keeper.request(role, roster_request("list"))["roster"][0]["observations"] == 10
     keeper.request(role, roster_request("remove", "Ada"))

@@ -57,7 +57,7 @@ from openptrack_py.tracking.identity.likelihood import (
     hellinger,
     rowwise_distance,
 )
-from openptrack_py.tracking.identity.models import PooledIdentity, TrackModels
+from openptrack_py.tracking.identity.models import PooledIdentity, TrackLooks, TrackModels
 from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
 from openptrack_py.tracking.identity.roster import Roster
 from openptrack_py.tracking.neighbours import close_pairs
@@ -182,13 +182,16 @@ class AppearanceIdentity:
         self.named = {tid: j for tid, j in self.named.items() if j != k}
         self.named[track_id] = k
 
-    def looks_of(self, track_id: int) -> tuple[np.ndarray, float, np.ndarray] | None:
-        """A live track's colour model, its observation count and embedding model."""
+    def looks_of(self, track_id: int) -> TrackLooks | None:
+        """A live track's models (``None``: no such track)."""
         row = self.models.rows(np.array([track_id]))[0]
         if row < 0:
             return None
         m = self.models
-        return m.sig[row].copy(), float(m.sig_n[row]), m.emb[row].copy()
+        return TrackLooks(
+            m.sig[row].copy(), float(m.sig_n[row]), m.emb[row].copy(),
+            float(m.hgt[row]), float(m.hgt_n[row]),
+        )  # fmt: skip
 
     # ------------------------------------------------------------ association
 
@@ -558,11 +561,13 @@ class AppearanceIdentity:
         mrows, cols, heights = mrows[useful], cols[useful], heights[useful]
         has_sig, has_hgt = has_sig[useful], has_hgt[useful]
         rho = self.cfg.evidence_per_observation
-        seen = _looks_side(looks, cols, has_sig)
+        seen = _looks_side(looks, cols, has_sig, heights, has_hgt)
         if len(self.roster):
             sig, sig_ok = self.roster.references("signature", m.sig.shape[1])
             emb, emb_ok = self.roster.references("embedding", m.emb.shape[1])
-            llr = self._pair_llr(seen, _Side(sig, sig_ok, emb, emb_ok.astype(float)))
+            llr = self._pair_llr(
+                seen, _Side(sig, sig_ok, emb, emb_ok.astype(float), *self.roster.heights())
+            )
             np.add.at(m.name_ev, mrows, rho * llr)
             # bounded, so a track that changed person can be renamed; a row is shifted
             # down as a whole (not clipped) so its margins between names survive (only

@@ -183,6 +183,31 @@ def _weight(count: np.ndarray, rate: float, ndim: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class TrackLooks:
+    """What a live track's models say of its person (what a roster entry captures).
+
+    Parameters
+    ----------
+    signature : ndarray
+        Colour model ``(B,)``, as association compares it: how the person looks now.
+    observations : float
+        The clean signatures it averages.
+    embedding : ndarray
+        Embedding model ``(D,)`` (zeros: none seen).
+    height : float
+        Height model, metres.
+    height_observations : float
+        The heights it averages (0: heights are not learned).
+    """
+
+    signature: np.ndarray
+    observations: float
+    embedding: np.ndarray
+    height: float
+    height_observations: float
+
+
+@dataclass(frozen=True)
 class PooledIdentity:
     """A confirmed person whose track was lost, waiting to be recognised again.
 

@@ -9,6 +9,7 @@ registered face names one-to-one to tracks. A roster file holds one entry per pe
       - name: Ada
         signature: [0.01, 0.30, ...]   # colour signature, summing to 1
         embedding: [0.12, -0.05, ...]  # optional identity embedding (unit length)
+        height: 1.12                   # optional height, metres (used when heights are)
         observations: 40               # clean detections the signature averages
         added: 2026-11-24T10:00:00Z
 
@@ -22,6 +23,7 @@ import math
 import os
 import tempfile
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -29,11 +31,15 @@ import numpy as np
 import yaml
 
 from openptrack_py.errors import ConfigError
+from openptrack_py.tracking.identity.models import TrackLooks
 
 FORMAT = 1
 MAX_NAME_LEN = 64
 MAX_PEOPLE = 1000
 MAX_DIMS = 1024
+MIN_HEIGHT_M = 0.5
+"""Shortest registered height: a toddler (the childcare tracking paper's children)."""
+MAX_HEIGHT_M = 2.5
 
 
 @dataclass(frozen=True)
@@ -48,6 +54,10 @@ class RosterEntry:
         Reference colour signature (summing to 1), or empty.
     embedding : tuple of float
         Reference identity embedding (unit length), or empty.
+    height : float
+        Reference height in metres, as the tracker measures it (0: none). It counts
+        only where the tracker compares heights (``height_weight`` > 0), and is in the
+        floor frame of the calibration it was taken with.
     observations : int
         Detections the references average.
     added : str
@@ -59,6 +69,7 @@ class RosterEntry:
     embedding: tuple[float, ...] = ()
     observations: int = 0
     added: str = ""
+    height: float = 0.0
 
     def to_yaml(self) -> dict[str, Any]:
         """The entry as it is written to the file."""
@@ -67,6 +78,8 @@ class RosterEntry:
             out["signature"] = [round(v, 6) for v in self.signature]
         if self.embedding:
             out["embedding"] = [round(v, 6) for v in self.embedding]
+        if self.height:
+            out["height"] = round(self.height, 3)
         out["observations"] = self.observations
         if self.added:
             out["added"] = self.added
@@ -106,6 +119,11 @@ class Roster:
                 out[k], ok[k] = ref, True
         return out, ok
 
+    def heights(self) -> tuple[np.ndarray, np.ndarray]:
+        """Reference heights ``(R,)`` in metres and a mask of the people who have one."""
+        out = np.array([p.height for p in self.people], dtype=float)
+        return out, out > 0
+
     def with_person(self, entry: RosterEntry) -> Roster:
         """The roster with ``entry`` added (replacing a person of the same name)."""
         kept = tuple(p for p in self.people if p.name != entry.name)
@@ -122,6 +140,24 @@ class Roster:
         if name not in self.names:
             raise KeyError(name)
         return Roster(tuple(p for p in self.people if p.name != name))
+
+
+def entry_from_looks(
+    name: str, looks: TrackLooks, enough: int, added: str | None = None
+) -> RosterEntry:
+    """A roster entry for ``name`` from a live track's ``looks``.
+
+    Colours and height count once the track has ``enough`` clean observations of them;
+    ``added`` defaults to now.
+    """
+    return RosterEntry(
+        name=name,
+        signature=tuple(looks.signature.tolist()) if looks.observations >= enough else (),
+        embedding=tuple(looks.embedding.tolist()) if looks.embedding.any() else (),
+        observations=int(looks.observations),
+        added=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ") if added is None else added,
+        height=round(looks.height, 3) if looks.height_observations >= enough else 0.0,
+    )
 
 
 def check_name(name: Any, where: str = "name") -> str:
@@ -160,11 +196,21 @@ def _entry(item: Any, k: int) -> RosterEntry:
     where = f"people[{k}]"
     if not isinstance(item, dict):
         raise ConfigError(f"{where}: expected a mapping")
-    unknown = set(item) - {"name", "signature", "embedding", "observations", "added"}
+    unknown = set(item) - {"name", "signature", "embedding", "height", "observations", "added"}
     if unknown:
         raise ConfigError(
             f"{where}: unknown key {sorted(unknown)[0]!r} (allowed: name, signature, "
-            "embedding, observations, added)"
+            "embedding, height, observations, added)"
+        )
+    height = item.get("height", 0.0)
+    if (
+        isinstance(height, bool)
+        or not isinstance(height, int | float)
+        or not (height == 0 or MIN_HEIGHT_M <= height <= MAX_HEIGHT_M)
+    ):
+        raise ConfigError(
+            f"{where}.height: expected metres from {MIN_HEIGHT_M} to {MAX_HEIGHT_M} "
+            f"(or 0: none), got {height!r}"
         )
     obs = item.get("observations", 0)
     if isinstance(obs, bool) or not isinstance(obs, int) or obs < 0:
@@ -175,6 +221,7 @@ def _entry(item: Any, k: int) -> RosterEntry:
         embedding=_vector(item.get("embedding"), f"{where}.embedding"),
         observations=obs,
         added=str(item.get("added", "")),
+        height=float(height),
     )
     if not entry.signature and not entry.embedding:
         raise ConfigError(f"{where}: needs a signature or an embedding")
