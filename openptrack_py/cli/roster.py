@@ -67,7 +67,9 @@ def run(args: argparse.Namespace) -> int:
         print(orjson.dumps(people).decode())
     elif args.action == "list":
         for person in people:
-            print(f"{person['name']}\t{person['observations']} observations\t{person['added']}")
+            height = f"{person['height']:.2f} m" if person.get("height") else "no height"
+            seen = f"{person['observations']} observations"
+            print("\t".join((person["name"], seen, height, person["added"])))
         if not people:
             print("(nobody registered)")
     else:

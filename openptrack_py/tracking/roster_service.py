@@ -52,7 +52,7 @@ def roster_listing(roster: Roster) -> dict[str, Any]:
     """What a roster request's answer carries."""
     return {
         ROSTER_KEY: [
-            {"name": p.name, "observations": p.observations, "added": p.added}
+            {"name": p.name, "observations": p.observations, "height": p.height, "added": p.added}
             for p in roster.people
         ]
     }

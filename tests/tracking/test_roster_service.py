@@ -40,7 +40,8 @@ def test_add_captures_the_tracks_looks_into_the_file(tmp_path: Path) -> None:
     assert saved.names == ("Ada",) and saved.people[0].signature == (0.1, 0.2, 0.3, 0.4)
     assert saved.people[0].height == 1.723
     assert role.roster == saved
-    assert keeper.request(role, roster_request("list"))["roster"][0]["observations"] == 10
+    listed = keeper.request(role, roster_request("list"))["roster"][0]
+    assert (listed["observations"], listed["height"]) == (10, 1.723)
     keeper.request(role, roster_request("remove", "Ada"))
     assert load_roster(path).names == () and role.roster.names == ()
 
