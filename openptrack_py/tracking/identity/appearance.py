@@ -280,7 +280,7 @@ class AppearanceIdentity:
         heights = dets.height[cols]
         if self._uses_heights:
             learnable = (confirmed, certain, far, others)
-            heights = self._learn_heights(table, mrows, cols, dets, clean, learnable)
+            heights = self._learn_heights(table, mrows, cols, dets, clean, learnable, t)
         self._gather_evidence(mrows, cols, dets, looks, clean, heights, t)
         self._decide(table, t)
 
@@ -297,8 +297,9 @@ class AppearanceIdentity:
         dets: DetectionArrays,
         clean: np.ndarray,
         learnable: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+        t: float,
     ) -> np.ndarray:
-        """Learn heights from one step's updates; return them corrected for the sensor.
+        """Learn heights from one step's updates at ``t``; return them corrected.
 
         Each sensor's height error, the height likelihood and the tracks' height models.
 
@@ -309,9 +310,9 @@ class AppearanceIdentity:
         confirmed, certain, far, others = learnable
         raw = dets.height[cols]
         heights = self.height_bias.correct(dets.sensor_id, dets.xy[cols], raw)
-        known = clean & confirmed & (m.hgt_n[mrows] >= enough)
+        known = clean & confirmed
         self.height_bias.learn(
-            dets.sensor_id, dets.xy[cols][known], raw[known] - m.hgt[mrows[known]]
+            dets.sensor_id, m.ids[mrows[known]], dets.xy[cols][known], raw[known], t
         )
         self.stature.learn(
             *distance_samples(
@@ -364,6 +365,7 @@ class AppearanceIdentity:
             elif link is not None:
                 pooled.append(link)  # a duplicate's borrowed identity is free again
         self.pool = tuple(pooled)
+        self.height_bias.forget(ids)
         m.drop(mrows[mrows >= 0])
         gone = set(ids.tolist())
         self.apart = {p: s for p, s in self.apart.items() if p[0] not in gone and p[1] not in gone}

@@ -1,4 +1,4 @@
-"""Each sensor's error of the heights it measures, learned from the tracks it shares.
+"""Each sensor's error of the heights it measures, learned from the people sensors share.
 
 A sensor measures a person's height from the floor plane it was given. That plane is
 a little off (a degree of tilt is 7 cm of height at 4 m), so one sensor's heights of
@@ -7,13 +7,22 @@ sensors, as much as heights differ between people. Compared as they come, a pers
 walking back in past another sensor would look like someone else.
 
 :class:`HeightBias` learns each sensor's error as an affine function of the floor
-position, ``a + b x + c y``, by least squares on the residuals of its detections
-against the height models of the confirmed tracks they updated (models averaged over
-every sensor that saw the person): the same quantity as the tracker's per-sensor
-position bias, for heights. Old residuals fade, and a ridge term keeps the slope at 0
-until the detections are spread enough to fix it. What all the sensors share (the
-floor of the whole network a little high) cannot be learned this way, and needs not be:
-heights are only ever compared with each other.
+position, ``a + b x + c y``, by least squares on residuals: a sensor's height of a
+track against the same track's heights from the *other* sensors that saw it within
+:data:`RECENT_S`, corrected. Against the track's height model instead (the average of
+every sensor's heights, its own included) each residual holds only the share of the
+error the other sensors' heights make visible, and a sensor that sees a part of the
+room alone (a door) never learns its error there; on a ``reentry`` run (seed 32) a
+sensor whose floor added 5-10 cm by the door had learned a correction of the wrong
+sign there, and people coming back measured 13-20 cm taller than when they left. Old
+residuals fade, and a ridge term keeps the slope at 0 until the detections are spread
+enough to fix it.
+
+What all the sensors share (the floor of the whole network a little high) cannot be
+learned from their differences. Each sensor's floor is calibrated on its own, so their
+errors are independent and their best shared estimate is none: the corrections are
+held to a weighted mean of 0 over the detections they were learned from, and remove
+only the sensors' differences (left free, that shared part drifts).
 """
 
 from __future__ import annotations
@@ -26,6 +35,9 @@ RIDGE = 10.0
 """Prior weight, in residuals at 1 m, that each coefficient is 0."""
 MIN_RESIDUALS = 50.0
 """Residuals a sensor needs before its correction is applied."""
+RECENT_S = 1.0
+"""How long another sensor's height of a track is a reference for this one's (the
+person's height does not change; a gait's bob is noise within it)."""
 
 
 class HeightBias:
@@ -35,11 +47,34 @@ class HeightBias:
         # sensor -> (A^T A (3, 3), A^T r (3,)) of rows (1, x, y), exponentially forgotten
         self._normal: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._coef: dict[str, np.ndarray] = {}
+        self._shared = 0.0  # the corrections' weighted mean, removed from each
+        # track id -> sensor -> (time, raw height, x, y) of its latest clean height
+        self._recent: dict[int, dict[str, tuple[float, float, float, float]]] = {}
 
-    def learn(self, sensor_id: str, xy: np.ndarray, residual: np.ndarray) -> None:
-        """Add residuals ``residual (n,)`` (measured minus modelled height) at ``xy (n, 2)``."""
-        if not len(residual):
-            return
+    def learn(
+        self, sensor_id: str, track_ids: np.ndarray, xy: np.ndarray, raw: np.ndarray, t: float
+    ) -> None:
+        """Add ``sensor_id``'s raw heights ``(n,)`` at ``xy (n, 2)`` of tracks ``track_ids``.
+
+        Each is compared with the same track's heights from other sensors within
+        :data:`RECENT_S` of ``t`` (corrected), and kept as a reference for them.
+        """
+        refs, rows = [], []
+        for k, tid in enumerate(track_ids.tolist()):
+            seen = self._recent.setdefault(tid, {})
+            others = [
+                h - self._offset(s, x, y)
+                for s, (when, h, x, y) in seen.items()
+                if s != sensor_id and t - when <= RECENT_S
+            ]
+            if others:
+                refs.append(sum(others) / len(others))
+                rows.append(k)
+            seen[sensor_id] = (t, float(raw[k]), float(xy[k, 0]), float(xy[k, 1]))
+        if rows:
+            self._fit(sensor_id, xy[rows], raw[rows] - np.array(refs))
+
+    def _fit(self, sensor_id: str, xy: np.ndarray, residual: np.ndarray) -> None:
         ata, atb = self._normal.get(sensor_id, (np.zeros((3, 3)), np.zeros(3)))
         a = np.column_stack([np.ones(len(xy)), xy])
         fade = np.exp(-len(residual) / MEMORY)
@@ -47,23 +82,48 @@ class HeightBias:
         self._normal[sensor_id] = (ata, atb)
         if ata[0, 0] >= MIN_RESIDUALS:
             self._coef[sensor_id] = np.linalg.solve(ata + RIDGE * np.eye(3), atb)
+            self._shared = self._mean_correction()
+
+    def forget(self, track_ids: np.ndarray) -> None:
+        """Tracks ``track_ids`` ended: their heights are no reference any more."""
+        for tid in track_ids.tolist():
+            self._recent.pop(tid, None)
+
+    def _mean_correction(self) -> float:
+        """The corrections' mean over the (faded) detections they were learned from."""
+        total = weight = 0.0
+        for sensor, coef in self._coef.items():
+            ata = self._normal[sensor][0]
+            total += float(ata[0] @ coef)  # n times the mean of 1, x, y, dotted
+            weight += float(ata[0, 0])
+        return total / weight if weight > 0 else 0.0
+
+    def _offset(self, sensor_id: str, x: float, y: float) -> float:
+        """What ``sensor_id`` adds to a height at ``(x, y)`` (0 until it is learned)."""
+        coef = self._coef.get(sensor_id)
+        if coef is None:
+            return 0.0
+        return float(coef[0] - self._shared + coef[1] * x + coef[2] * y)
 
     def correct(self, sensor_id: str, xy: np.ndarray, height: np.ndarray) -> np.ndarray:
         """Heights ``(n,)`` measured by ``sensor_id`` at ``xy (n, 2)``, corrected."""
         coef = self._coef.get(sensor_id)
         if coef is None or not len(height):
             return height
-        return height - (coef[0] + xy @ coef[1:])
+        return height - (coef[0] - self._shared + xy @ coef[1:])
 
-    def state(self) -> tuple[dict, dict]:
+    def state(self) -> tuple[dict, dict, dict]:
         """For snapshots (copies)."""
         return (
             {k: (a.copy(), b.copy()) for k, (a, b) in self._normal.items()},
             {k: c.copy() for k, c in self._coef.items()},
+            {k: dict(v) for k, v in self._recent.items()},
         )
 
-    def restore(self, state: tuple[dict, dict]) -> None:
-        """Return to a :meth:`state`."""
-        normal, coef = state
+    def restore(self, state: tuple) -> None:
+        """Return to a :meth:`state` (one from before references were kept has none)."""
+        normal, coef, *recent = state
         self._normal = {k: (a.copy(), b.copy()) for k, (a, b) in normal.items()}
         self._coef = {k: c.copy() for k, c in coef.items()}
+        self._recent = {k: dict(v) for k, v in recent[0].items()} if recent else {}
+        self._shared = self._mean_correction()
