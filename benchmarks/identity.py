@@ -41,7 +41,7 @@ from openptrack_py.eval.runner import Hypotheses, TrackerFeed, evaluate
 from openptrack_py.eval.trackers import tracking_feed
 from openptrack_py.messages.ground_truth import GroundTruthFrame
 from openptrack_py.sim.scenarios import build_scenario
-from openptrack_py.tracking.identity import AppearanceIdentity, Roster
+from openptrack_py.tracking.identity import AppearanceIdentity, Roster, RosterEntry
 from openptrack_py.tracking.identity.roster import entry_from_looks
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -133,33 +133,38 @@ class _NameLog:
 
 
 def _register(seed: int, embeddings: bool) -> Roster:
-    """Every person's looks from the first seconds of the run, named ``p<id>``."""
+    """Every person's looks from the first seconds of the run, named ``p<id>``.
+
+    Each is registered from the track matched to them the last time one was, with looks
+    enough to register (as a teacher registers each child while the child is in view):
+    someone out of view at the end of the window is still registered.
+    """
     scenario = _scenario("classroom", seed, REGISTRATION_S, embeddings)
     feed = tracking_feed(_config(True))
-    last: dict[str, object] = {}
+    identity = feed.pipeline.tracker.identity
+    assert isinstance(identity, AppearanceIdentity)
+    enough = identity.cfg.min_observations
+    entries: dict[int, RosterEntry] = {}
 
     def keep(t: float, truth: GroundTruthFrame, hyp: Hypotheses | None) -> None:
-        last["truth"], last["hyp"] = truth, hyp
+        latest = feed._latest
+        people = [p for p in truth.people if p.covered]  # type: ignore[attr-defined]
+        if hyp is None or latest is None or not people or not len(hyp.ids):
+            return
+        by_stable = {(tr.stable_id or tr.id): tr.id for tr in latest.tracks}
+        gt = np.array([(p.x, p.y) for p in people])
+        dist = np.linalg.norm(gt[:, None] - hyp.xy[None], axis=2)
+        rows, cols = linear_sum_assignment(np.where(dist <= MATCH_M, dist, 1e6))
+        for r, c in zip(rows, cols, strict=True):
+            looks = identity.looks_of(by_stable.get(int(hyp.ids[c]), -1))
+            if dist[r, c] > MATCH_M or looks is None:
+                continue
+            entry = entry_from_looks(f"p{people[r].id}", looks, enough, "")
+            if entry.signature or entry.embedding:
+                entries[people[r].id] = entry
 
     evaluate(scenario, feed, on_frame=keep)
-    truth, hyp = last["truth"], last["hyp"]
-    identity = feed.pipeline.tracker.identity
-    assert isinstance(identity, AppearanceIdentity) and isinstance(hyp, Hypotheses)
-    latest = feed._latest
-    by_stable = {(tr.stable_id or tr.id): tr.id for tr in latest.tracks} if latest else {}
-    people = [p for p in truth.people if p.covered]  # type: ignore[attr-defined]
-    gt = np.array([(p.x, p.y) for p in people])
-    dist = np.linalg.norm(gt[:, None] - hyp.xy[None], axis=2)
-    rows, cols = linear_sum_assignment(np.where(dist <= MATCH_M, dist, 1e6))
-    entries = []
-    for r, c in zip(rows, cols, strict=True):
-        looks = identity.looks_of(by_stable.get(int(hyp.ids[c]), -1))
-        if dist[r, c] > MATCH_M or looks is None:
-            continue
-        entries.append(
-            entry_from_looks(f"p{people[r].id}", looks, identity.cfg.min_observations, "")
-        )
-    return Roster(tuple(e for e in entries if e.signature or e.embedding))
+    return Roster(tuple(entries[k] for k in sorted(entries)))
 
 
 def run_roster(job: tuple[int, float | None, bool]) -> dict[str, object]:
