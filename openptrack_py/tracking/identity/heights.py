@@ -27,6 +27,8 @@ only the sensors' differences (left free, that shared part drifts).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 MEMORY = 2000.0
@@ -98,19 +100,18 @@ class HeightBias:
             weight += float(ata[0, 0])
         return total / weight if weight > 0 else 0.0
 
-    def _offset(self, sensor_id: str, x: float, y: float) -> float:
-        """What ``sensor_id`` adds to a height at ``(x, y)`` (0 until it is learned)."""
+    def _offset(self, sensor_id: str, x: Any, y: Any) -> Any:
+        """What ``sensor_id`` adds to heights at ``(x, y)``, floats or arrays (0: unknown)."""
         coef = self._coef.get(sensor_id)
         if coef is None:
             return 0.0
-        return float(coef[0] - self._shared + coef[1] * x + coef[2] * y)
+        return coef[0] - self._shared + coef[1] * x + coef[2] * y
 
     def correct(self, sensor_id: str, xy: np.ndarray, height: np.ndarray) -> np.ndarray:
         """Heights ``(n,)`` measured by ``sensor_id`` at ``xy (n, 2)``, corrected."""
-        coef = self._coef.get(sensor_id)
-        if coef is None or not len(height):
+        if sensor_id not in self._coef or not len(height):
             return height
-        return height - (coef[0] - self._shared + xy @ coef[1:])
+        return height - self._offset(sensor_id, xy[:, 0], xy[:, 1])
 
     def state(self) -> tuple[dict, dict, dict]:
         """For snapshots (copies)."""
