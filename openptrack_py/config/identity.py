@@ -31,10 +31,11 @@ class IdentityConfig(StrictModel):
     height_weight : float
         Weight of the height's log-likelihood ratio (a soft biometric: how tall a person
         is tells little alone, but adds to colour what colour cannot tell apart); each
-        sensor's height error is learned and removed first. 0 (the default) leaves
-        heights out: on the ``realistic`` held-out runs 1 raised IDF1 on ``occlusions``,
-        ``uniforms``, ``installation`` and ``classroom`` but kept fewer returns on
-        ``reentry`` (``docs/evaluation.md``).
+        sensor's height error (against the other sensors' heights of the same people)
+        is learned and removed first. 0 leaves heights out (none is learned or
+        compared); on the ``realistic`` held-out runs 1 raised mean IDF1 on five of six
+        scenarios, kept as many returns and put the right name on 96-98 % of a
+        registered classroom's frames (``docs/evaluation.md``).
     max_llr : float
         Largest absolute log-likelihood ratio one observation contributes.
     min_observations : int
@@ -111,7 +112,7 @@ class IdentityConfig(StrictModel):
     enabled: bool = False
     appearance_weight: float = Field(1.0, ge=0.0, le=10.0)
     embedding_weight: float = Field(1.0, ge=0.0, le=10.0)
-    height_weight: float = Field(0.0, ge=0.0, le=10.0)
+    height_weight: float = Field(1.0, ge=0.0, le=10.0)
     max_llr: float = Field(3.0, gt=0.0, le=20.0)
     min_observations: int = Field(3, ge=1, le=1000)
     model_rate: float = Field(0.01, gt=0.0, le=1.0)
