@@ -916,8 +916,6 @@ def test_what_every_sensor_shares_is_not_taken_for_an_error() -> None:
     xy, tall = _learn_two_floors(bias, rng, high, high, steps=400)
     for sensor in ("a", "b"):
         assert np.abs(bias.correct(sensor, xy, tall) - tall).max() < 0.005
-    bias.forget(np.arange(30))
-    assert not bias._recent
 
 
 def test_a_return_seen_by_another_sensor_than_the_leaving_is_recognised_by_height() -> None:

@@ -365,7 +365,6 @@ class AppearanceIdentity:
             elif link is not None:
                 pooled.append(link)  # a duplicate's borrowed identity is free again
         self.pool = tuple(pooled)
-        self.height_bias.forget(ids)
         m.drop(mrows[mrows >= 0])
         gone = set(ids.tolist())
         self.apart = {p: s for p, s in self.apart.items() if p[0] not in gone and p[1] not in gone}

@@ -50,8 +50,9 @@ class HeightBias:
         self._normal: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._coef: dict[str, np.ndarray] = {}
         self._shared = 0.0  # the corrections' weighted mean, removed from each
-        # track id -> sensor -> (time, raw height, x, y) of its latest clean height
-        self._recent: dict[int, dict[str, tuple[float, float, float, float]]] = {}
+        # sensor -> rows (track id, time, raw height, x, y) of the tracks it saw within
+        # RECENT_S, one per track, sorted by id
+        self._recent: dict[str, np.ndarray] = {}
 
     def learn(
         self, sensor_id: str, track_ids: np.ndarray, xy: np.ndarray, raw: np.ndarray, t: float
@@ -61,20 +62,23 @@ class HeightBias:
         Each is compared with the same track's heights from other sensors within
         :data:`RECENT_S` of ``t`` (corrected), and kept as a reference for them.
         """
-        refs, rows = [], []
-        for k, tid in enumerate(track_ids.tolist()):
-            seen = self._recent.setdefault(tid, {})
-            others = [
-                h - self._offset(s, x, y)
-                for s, (when, h, x, y) in seen.items()
-                if s != sensor_id and t - when <= RECENT_S
-            ]
-            if others:
-                refs.append(sum(others) / len(others))
-                rows.append(k)
-            seen[sensor_id] = (t, float(raw[k]), float(xy[k, 0]), float(xy[k, 1]))
-        if rows:
-            self._fit(sensor_id, xy[rows], raw[rows] - np.array(refs))
+        ids = np.asarray(track_ids, dtype=float)
+        total, count = np.zeros(len(ids)), np.zeros(len(ids))
+        for sensor, rec in self._recent.items():
+            if sensor == sensor_id or not len(rec):
+                continue
+            k = np.minimum(np.searchsorted(rec[:, 0], ids), len(rec) - 1)
+            hit = (rec[k, 0] == ids) & (t - rec[k, 1] <= RECENT_S)
+            total += np.where(hit, rec[k, 2] - self._offset(sensor, rec[k, 3], rec[k, 4]), 0.0)
+            count += hit
+        rows = count > 0
+        if rows.any():
+            self._fit(sensor_id, xy[rows], raw[rows] - total[rows] / count[rows])
+        old = self._recent.get(sensor_id, np.zeros((0, 5)))
+        old = old[(t - old[:, 1] <= RECENT_S) & ~np.isin(old[:, 0], ids)]
+        new = np.column_stack([ids, np.full(len(ids), t), raw, xy])
+        both = np.concatenate([old, new])
+        self._recent[sensor_id] = both[np.argsort(both[:, 0], kind="stable")]
 
     def _fit(self, sensor_id: str, xy: np.ndarray, residual: np.ndarray) -> None:
         ata, atb = self._normal.get(sensor_id, (np.zeros((3, 3)), np.zeros(3)))
@@ -85,11 +89,6 @@ class HeightBias:
         if ata[0, 0] >= MIN_RESIDUALS:
             self._coef[sensor_id] = np.linalg.solve(ata + RIDGE * np.eye(3), atb)
             self._shared = self._mean_correction()
-
-    def forget(self, track_ids: np.ndarray) -> None:
-        """Tracks ``track_ids`` ended: their heights are no reference any more."""
-        for tid in track_ids.tolist():
-            self._recent.pop(tid, None)
 
     def _mean_correction(self) -> float:
         """The corrections' mean over the (faded) detections they were learned from."""
@@ -118,7 +117,7 @@ class HeightBias:
         return (
             {k: (a.copy(), b.copy()) for k, (a, b) in self._normal.items()},
             {k: c.copy() for k, c in self._coef.items()},
-            {k: dict(v) for k, v in self._recent.items()},
+            {k: r.copy() for k, r in self._recent.items()},
         )
 
     def restore(self, state: tuple) -> None:
@@ -126,5 +125,6 @@ class HeightBias:
         normal, coef, *recent = state
         self._normal = {k: (a.copy(), b.copy()) for k, (a, b) in normal.items()}
         self._coef = {k: c.copy() for k, c in coef.items()}
-        self._recent = {k: dict(v) for k, v in recent[0].items()} if recent else {}
+        rows = recent[0] if recent else {}
+        self._recent = {k: r.copy() for k, r in rows.items() if isinstance(r, np.ndarray)}
         self._shared = self._mean_correction()
