@@ -94,6 +94,16 @@ def run_one(job: tuple[str, int, bool, float | None, bool]) -> dict[str, object]
     }
 
 
+def _match(people: list, hyp: Hypotheses) -> dict[int, int]:
+    """Each person's track (index of ``people`` to index of ``hyp``), within ``MATCH_M``."""
+    gt = np.array([(p.x, p.y) for p in people])
+    dist = np.linalg.norm(gt[:, None] - hyp.xy[None], axis=2)
+    rows, cols = linear_sum_assignment(np.where(dist <= MATCH_M, dist, 1e6))
+    return {
+        r: c for r, c in zip(rows.tolist(), cols.tolist(), strict=True) if dist[r, c] <= MATCH_M
+    }
+
+
 class _NameLog:
     """Per scored frame: is each person's matched track named after them, or another?"""
 
@@ -118,10 +128,7 @@ class _NameLog:
         if not people or not len(hyp.ids):
             self.judged += sum(t - self.first_seen[p.id] >= NAME_SETTLE_S for p in people)
             return
-        gt = np.array([(p.x, p.y) for p in people])
-        dist = np.linalg.norm(gt[:, None] - hyp.xy[None], axis=2)
-        rows, cols = linear_sum_assignment(np.where(dist <= MATCH_M, dist, 1e6))
-        match = {r: c for r, c in zip(rows, cols, strict=True) if dist[r, c] <= MATCH_M}
+        match = _match(people, hyp)
         for k, p in enumerate(people):
             if t - self.first_seen[p.id] < NAME_SETTLE_S:
                 continue
@@ -152,12 +159,9 @@ def _register(seed: int, embeddings: bool) -> Roster:
         if hyp is None or latest is None or not people or not len(hyp.ids):
             return
         by_stable = {(tr.stable_id or tr.id): tr.id for tr in latest.tracks}
-        gt = np.array([(p.x, p.y) for p in people])
-        dist = np.linalg.norm(gt[:, None] - hyp.xy[None], axis=2)
-        rows, cols = linear_sum_assignment(np.where(dist <= MATCH_M, dist, 1e6))
-        for r, c in zip(rows, cols, strict=True):
+        for r, c in _match(people, hyp).items():
             looks = identity.looks_of(by_stable.get(int(hyp.ids[c]), -1))
-            if dist[r, c] > MATCH_M or looks is None:
+            if looks is None:
                 continue
             entry = entry_from_looks(f"p{people[r].id}", looks, enough, "")
             if entry.signature or entry.embedding:

@@ -1,8 +1,8 @@
 """``openptrack roster``: register people by name from a running tracker.
 
 ``openptrack roster add NAME --track ID`` asks the running tracker to capture that
-track's looks (its colour signature and, where the sensors send them, its identity
-embedding) into the roster file; ``roster list`` and ``roster remove NAME`` read and
+track's looks (its colour signature, its height and, where the sensors send them, its
+identity embedding) into the roster file; ``roster list`` and ``roster remove NAME`` read and
 change the same file, through the tracker, so the command works from any machine of
 the site. The tracker names tracks from the roster (``face_name`` in OpenPTrack UDP
 JSON, ``identity`` elsewhere) once their evidence passes its threshold.

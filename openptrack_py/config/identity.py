@@ -48,7 +48,8 @@ class IdentityConfig(StrictModel):
         is that memory): how the person looks now, under the sensors that see them now.
     visit_rate : float
         The same for the colour model a lost track leaves in the pool: how the person
-        looked over their visit (a roster entry takes the other: how they look now).
+        looked over their visit (a roster entry's colours take the other: how they
+        look now).
         0.002 keeps 500 clean observations, with three sensors at 15-30 Hz several
         seconds and several sensors' colour casts; a memory of 100 describes only the
         last one to three seconds before they left, walking away under the door's

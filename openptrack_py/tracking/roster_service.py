@@ -8,7 +8,7 @@ name, or ``"list"``; plain values, as every configuration request). The tracker
 captures the track's looks from its identity role, writes the roster file atomically,
 names that track at once (it is the person just registered) and answers with the
 roster's people in the ack's ``config``
-(``{"roster": [{"name", "observations", "added"}, ...]}``).
+(``{"roster": [{"name", "observations", "height", "added"}, ...]}``).
 
 The file is also watched: an edit by hand (or by another tool) is loaded at most
 :data:`RELOAD_CHECK_S` later; a file that does not parse is reported and the roster in
@@ -128,12 +128,13 @@ class RosterKeeper:
         if looks is None:
             raise ConfigError(f"roster: no track {track} (is the person in view?)")
         enough = identity.cfg.min_observations
-        if looks.observations < enough and not looks.embedding.any():
+        entry = entry_from_looks(name, looks, enough)
+        if not entry.signature and not entry.embedding:
             raise ConfigError(
                 f"roster: track {track} has {int(looks.observations)} clean observations "
                 f"of the {enough} needed; let the person stand in view a little longer"
             )
-        return entry_from_looks(name, looks, enough)
+        return entry
 
     def reload_if_changed(self, identity: object) -> str | None:
         """Load the file again if it changed; return an error message if it is invalid."""

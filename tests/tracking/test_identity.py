@@ -159,7 +159,7 @@ def _crossing(tracker, rng, t0, k0, same_colour=False):
     return ids_after
 
 
-def test_identity_annotates_every_track_with_a_stable_id() -> None:
+def test_identity_labels_every_track_with_a_stable_id() -> None:
     rng = np.random.default_rng(3)
     tracker = identity_tracker()
     out, _ = _warm_up(tracker, rng)
@@ -545,6 +545,8 @@ def test_roster_file_roundtrip_and_errors(tmp_path: Path) -> None:
     path.write_text("version: 1\npeople:\n  - {name: a, signature: [1], height: 25}\n")
     with pytest.raises(ConfigError, match=r"people\[0\]\.height: expected metres from 0.5"):
         load_roster(path)
+    path.write_text("version: 1\npeople:\n  - {name: a, signature: [1], height: null}\n")
+    assert load_roster(path).people[0].height == 0.0
     tall = Roster((RosterEntry("Bo", (1.0,), height=1.82),))
     save_roster(tall, path)
     assert load_roster(path) == tall and "height: 1.82" in path.read_text()

@@ -67,6 +67,17 @@ def test_bad_requests_say_what_is_wrong_and_change_nothing(
     assert not path.exists()
 
 
+@pytest.mark.parametrize("height", [0.45, 3.1, float("nan")])
+def test_a_height_a_roster_would_refuse_is_not_captured(tmp_path: Path, height: float) -> None:
+    """Someone seen crouching (or a wild height) is registered without a height, and the
+    file still loads."""
+    path = tmp_path / "roster.yaml"
+    keeper, role = RosterKeeper(path), _identity_with_a_track()
+    role.models.hgt[0] = height
+    keeper.request(role, roster_request("add", "Ada", 7))
+    assert load_roster(path).people[0].height == 0.0
+
+
 def test_a_track_seen_too_little_cannot_be_registered(tmp_path: Path) -> None:
     keeper, role = RosterKeeper(tmp_path / "r.yaml"), _identity_with_a_track(observations=1)
     with pytest.raises(ConfigError, match="1 clean observations of the 3 needed"):

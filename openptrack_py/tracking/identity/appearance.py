@@ -4,8 +4,10 @@
 
 * **Association** (DeepSORT's appearance term, the childcare tracking paper's weighted
   combination of motion, colour and face likelihoods, Eq. 4-9): each gated pair's cost
-  gains ``-(w_c LLR_colour + w_f c LLR_embedding)``, the log-likelihood ratios of "same
-  person" learned online (:mod:`.likelihood`) and ``c`` the embedding's own confidence.
+  gains ``-(w_c LLR_colour + w_f c LLR_embedding + w_h LLR_height)``, the
+  log-likelihood ratios of "same person" learned online (:mod:`.likelihood`; heights
+  corrected for each sensor's floor, :mod:`.heights`) and ``c`` the embedding's own
+  confidence.
   It is added to admissible pairs only, so appearance re-ranks what the gate admitted
   and never admits anything.
 * **Models** learn only from clean detections: confident, and not behind another
@@ -196,7 +198,10 @@ class AppearanceIdentity:
     # ------------------------------------------------------------ association
 
     def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
-        """``-(w_c LLR_colour + w_f c LLR_embedding)`` of every pair (``None``: no opinion)."""
+        """``-(w_c LLR_colour + w_f c LLR_embedding + w_h LLR_height)`` of every pair.
+
+        ``None``: no opinion.
+        """
         looks = dets.looks
         if looks is None or not len(table) or not len(dets):
             return None
@@ -451,7 +456,7 @@ class AppearanceIdentity:
             self.together[pairs[k]] = t
         return ok
 
-    def labels(self, ids: np.ndarray) -> tuple[list[int], list[str | None]]:
+    def labels(self, ids: np.ndarray) -> tuple[list[int | None], list[str | None]]:
         """Per track of ``ids``: its ``stable_id`` and, when named, its name."""
         rows = self.models.rows(ids)
         stable = ids.copy()
@@ -477,7 +482,7 @@ class AppearanceIdentity:
         return far, alone
 
     def _pair_llr(self, a: _Side, b: _Side) -> np.ndarray:
-        """Log-likelihood ratio ``(len(a), len(b))`` of "same person", colour and embedding."""
+        """Log-likelihood ratio ``(len(a), len(b))`` of "same person" (all three cues)."""
         out = np.zeros((len(a.sig), len(b.sig)))
         cfg = self.cfg
         dim = a.sig.shape[1]

@@ -54,14 +54,14 @@ class RosterEntry:
         Reference colour signature (summing to 1), or empty.
     embedding : tuple of float
         Reference identity embedding (unit length), or empty.
-    height : float
-        Reference height in metres, as the tracker measures it (0: none). It counts
-        only where the tracker compares heights (``height_weight`` > 0), and is in the
-        floor frame of the calibration it was taken with.
     observations : int
         Detections the references average.
     added : str
         When the person was registered (ISO 8601).
+    height : float
+        Reference height in metres, as the tracker measures it (0: none). It counts
+        only where the tracker compares heights (``height_weight`` > 0), and is in the
+        floor frame of the calibration it was taken with.
     """
 
     name: str
@@ -147,17 +147,27 @@ def entry_from_looks(
 ) -> RosterEntry:
     """A roster entry for ``name`` from a live track's ``looks``.
 
-    Colours and height count once the track has ``enough`` clean observations of them;
+    Colours and height count once the track has ``enough`` clean observations of them,
+    a height only where a roster accepts it (a person seen sitting or crouching, or a
+    detector's wild height, leaves none rather than a file that no longer loads);
     ``added`` defaults to now.
     """
+    height = round(looks.height, 3)
+    if looks.height_observations < enough or not _valid_height(height):
+        height = 0.0
     return RosterEntry(
         name=name,
         signature=tuple(looks.signature.tolist()) if looks.observations >= enough else (),
         embedding=tuple(looks.embedding.tolist()) if looks.embedding.any() else (),
         observations=int(looks.observations),
         added=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ") if added is None else added,
-        height=round(looks.height, 3) if looks.height_observations >= enough else 0.0,
+        height=height,
     )
+
+
+def _valid_height(height: float) -> bool:
+    """Whether a height in metres is one a roster stores (0 stands for none)."""
+    return math.isfinite(height) and MIN_HEIGHT_M <= height <= MAX_HEIGHT_M
 
 
 def check_name(name: Any, where: str = "name") -> str:
@@ -202,11 +212,11 @@ def _entry(item: Any, k: int) -> RosterEntry:
             f"{where}: unknown key {sorted(unknown)[0]!r} (allowed: name, signature, "
             "embedding, height, observations, added)"
         )
-    height = item.get("height", 0.0)
+    height = item.get("height") or 0.0
     if (
         isinstance(height, bool)
         or not isinstance(height, int | float)
-        or not (height == 0 or MIN_HEIGHT_M <= height <= MAX_HEIGHT_M)
+        or not (height == 0 or _valid_height(height))
     ):
         raise ConfigError(
             f"{where}.height: expected metres from {MIN_HEIGHT_M} to {MAX_HEIGHT_M} "
