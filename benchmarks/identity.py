@@ -164,7 +164,7 @@ def _register(seed: int, embeddings: bool) -> Roster:
             if looks is None:
                 continue
             entry = entry_from_looks(f"p{people[r].id}", looks, enough, "")
-            if entry.signature or entry.embedding:
+            if entry.has_reference:
                 entries[people[r].id] = entry
 
     evaluate(scenario, feed, on_frame=keep)

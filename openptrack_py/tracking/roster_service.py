@@ -129,7 +129,7 @@ class RosterKeeper:
             raise ConfigError(f"roster: no track {track} (is the person in view?)")
         enough = identity.cfg.min_observations
         entry = entry_from_looks(name, looks, enough)
-        if not entry.signature and not entry.embedding:
+        if not entry.has_reference:
             raise ConfigError(
                 f"roster: track {track} has {int(looks.observations)} clean observations "
                 f"of the {enough} needed; let the person stand in view a little longer"

@@ -71,6 +71,11 @@ class RosterEntry:
     added: str = ""
     height: float = 0.0
 
+    @property
+    def has_reference(self) -> bool:
+        """Whether the entry can recognise anyone: a signature or an embedding."""
+        return bool(self.signature or self.embedding)
+
     def to_yaml(self) -> dict[str, Any]:
         """The entry as it is written to the file."""
         out: dict[str, Any] = {"name": self.name}
@@ -191,13 +196,18 @@ def check_name(name: Any, where: str = "name") -> str:
     return name
 
 
+def _finite(value: Any) -> bool:
+    """Whether ``value`` is a finite number (a YAML ``true`` is not)."""
+    return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
+
+
 def _vector(value: Any, where: str) -> tuple[float, ...]:
     if value is None:
         return ()
     if not isinstance(value, list) or len(value) > MAX_DIMS:
         raise ConfigError(f"{where}: expected a list of at most {MAX_DIMS} numbers")
     for v in value:
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        if not _finite(v):
             raise ConfigError(f"{where}: expected finite numbers, got {v!r}")
     return tuple(float(v) for v in value)
 
@@ -212,12 +222,9 @@ def _entry(item: Any, k: int) -> RosterEntry:
             f"{where}: unknown key {sorted(unknown)[0]!r} (allowed: name, signature, "
             "embedding, height, observations, added)"
         )
-    height = item.get("height") or 0.0
-    if (
-        isinstance(height, bool)
-        or not isinstance(height, int | float)
-        or not (height == 0 or _valid_height(height))
-    ):
+    height = item.get("height")
+    height = 0.0 if height is None else height
+    if not _finite(height) or not (height == 0 or _valid_height(height)):
         raise ConfigError(
             f"{where}.height: expected metres from {MIN_HEIGHT_M} to {MAX_HEIGHT_M} "
             f"(or 0: none), got {height!r}"
@@ -233,7 +240,7 @@ def _entry(item: Any, k: int) -> RosterEntry:
         added=str(item.get("added", "")),
         height=float(height),
     )
-    if not entry.signature and not entry.embedding:
+    if not entry.has_reference:
         raise ConfigError(f"{where}: needs a signature or an embedding")
     return entry
 
