@@ -182,6 +182,16 @@ class TrackerConfig(StrictModel):
         people comes out on the far side with the other person. 0 (the default): no
         slowing. 0.3 raised IDF1 on ``crowd`` and ``classroom`` but lowered it on
         ``installation`` and added duplicates (docs/evaluation.md): not on by default yet.
+    person_gap_m : float
+        Least distance between the centres of two people: a body's depth (adults' chest
+        depth is 0.2-0.3 m in anthropometric surveys, children's less). Two tracks known
+        to be two people (one sensor frame detected both apart in the last 5 s, as
+        merging records; nothing is known with ``merge_after_s`` 0) are never estimated
+        closer: their estimates are pushed apart along the line between them, each by
+        its share of their uncertainty (a Kalman estimate projected onto the
+        constraint). A track coasting through the blob of two people then pushes the
+        other ahead instead of passing through it and taking its place. 0: no
+        constraint.
     support_rate : float
         Weight of one expected sensor frame in a track's support (the exponential
         average of detected / expected frames).
@@ -271,6 +281,7 @@ class TrackerConfig(StrictModel):
     unseen_stop_s: float = Field(1.0, ge=0.0, le=60.0)
     shared_noise_factor: float = Field(10.0, ge=1.0, le=100.0)
     approach_stop_s: float = Field(0.0, ge=0.0, le=60.0)
+    person_gap_m: float = Field(0.2, ge=0.0, le=1.0)
     frame_id: Name | None = None
     discover_sensors: bool = False
     sensor_forget_s: float = Field(30.0, gt=0.0, le=86400.0)
@@ -311,6 +322,7 @@ ROBUSTNESS_OFF: dict[str, object] = {
     "unseen_stop_s": 0.0,
     "shared_noise_factor": 1.0,
     "approach_stop_s": 0.0,
+    "person_gap_m": 0.0,
 }
 """``TrackerConfig`` settings that turn off every mechanism of robust track management
 (learned sensor noise and alignment, the birth gate and least separation, confirmation on

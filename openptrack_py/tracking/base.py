@@ -15,8 +15,8 @@ initiator          ``initiate`` / ``confirm``: births and confirmation   Confide
 deleter            ``delete``: which tracks end                          TimeDeleter
 sensors            ``correct`` / ``noise_scale`` / ``covers`` / ``learn``: OnlineSensorModel
                    what is learned about each sensor
-merger             ``observe`` / ``merge`` / ``reattach``: one person,   TrackMerger
-                   one track
+merger             ``observe`` / ``merge`` / ``reattach`` /              TrackMerger
+                   ``distinct_rows``: one person, one track
 identity           ``cost`` / ``observe`` / ``distinct`` / ``labels``:    NullIdentity
                    who a track is
 =================  ===================================================  ==============
@@ -166,6 +166,9 @@ class Merger(Protocol):
 
     def continuations(self, table: TrackTable, t: float, lost_after_s: float) -> np.ndarray:
         """Mask of tentative tracks that may be a lost, walking person seen again."""
+
+    def distinct_rows(self, table: TrackTable, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Row pairs ``(a, b)`` of tracks known at ``t`` to be two people."""
 
 
 @runtime_checkable

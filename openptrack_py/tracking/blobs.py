@@ -4,7 +4,9 @@ The childcare tracking paper (section 2.3.3) lets several children share one det
 area. Here a confirmed track left without a detection may follow the detection of a
 track the identity role knows to be another person standing beside it, so that neither
 identity is dropped or swapped while they stand together. Two tracks that could both
-have produced one detection also stop closing in on each other (:func:`slow_approaches`).
+have produced one detection also stop closing in on each other (:func:`slow_approaches`),
+and two tracks known to be two people are never estimated closer than a body's depth
+(:func:`keep_apart`).
 """
 
 from __future__ import annotations
@@ -128,3 +130,35 @@ def slow_approaches(tb: TrackTable, gated: np.ndarray, dt: float, stop_s: float)
     cut = (0.5 * (1.0 - np.exp(-dt / stop_s)) * closing / norm)[:, None] * gap
     np.subtract.at(tb.x, (a, slice(2, 4)), cut)
     np.add.at(tb.x, (b, slice(2, 4)), cut)
+
+
+def keep_apart(tb: TrackTable, a: np.ndarray, b: np.ndarray, gap_m: float) -> None:
+    """Push the estimates of tracks ``a[k]`` and ``b[k]`` (two people) ``gap_m`` apart.
+
+    Two people's centres are never closer than a body's depth. Where the estimates of a
+    pair known to be two people are, they are projected onto that constraint the way a
+    Kalman estimate is projected onto a state constraint (Simon and Chia, "Kalman
+    filtering with state equality constraints", 2002): along the unit vector ``u``
+    between them, ``x_a -= lam P_a[:, :2] u`` and ``x_b += lam P_b[:, :2] u`` with
+    ``lam = (gap_m - d) / (u' P_a u + u' P_b u)``, so the more uncertain track moves
+    more, its velocity moves with its position (their covariance), and their order
+    along ``u`` is kept. Covariances are left as they are. Pairs are taken in turn (a
+    track pushed by one neighbour may be pushed back by the next).
+    """
+    if gap_m <= 0 or not len(a):
+        return
+    d = tb.x[b, 0:2] - tb.x[a, 0:2]
+    n = np.hypot(d[:, 0], d[:, 1])
+    near = np.flatnonzero((n < gap_m) & (n > 1e-9))  # coincident: no side to push to
+    for k in near.tolist():
+        i, j = int(a[k]), int(b[k])
+        gap = tb.x[j, 0:2] - tb.x[i, 0:2]
+        dist = float(np.hypot(*gap))
+        if dist >= gap_m or dist <= 1e-9:
+            continue
+        u = gap / dist
+        pa = tb.cov[i, :, 0:2] @ u
+        pb = tb.cov[j, :, 0:2] @ u
+        lam = (gap_m - dist) / max(float(u @ pa[0:2] + u @ pb[0:2]), 1e-12)
+        tb.x[i] -= lam * pa
+        tb.x[j] += lam * pb

@@ -85,6 +85,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             unseen_stop_s=cfg.unseen_stop_s,
             shared_noise_factor=cfg.shared_noise_factor,
             approach_stop_s=cfg.approach_stop_s,
+            person_gap_m=cfg.person_gap_m,
             evidence_per_hit=math.log(
                 cfg.confirm_still_person_rate / cfg.confirm_still_clutter_rate
             ),

@@ -83,6 +83,25 @@ class TrackMerger:
         for a, b in zip(table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist(), strict=True):
             self._distinct[(a, b) if a < b else (b, a)] = t
 
+    def distinct_rows(self, table: TrackTable, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Row pairs ``(a, b)`` of tracks known to be two people at ``t``.
+
+        Known: detected apart in one sensor frame within the last ``distinct_s``.
+        """
+        empty = np.zeros(0, dtype=np.intp)
+        if not self._distinct:
+            return empty, empty
+        row_of = {int(i): r for r, i in enumerate(table.ids.tolist())}
+        pairs = [
+            (row_of[a], row_of[b])
+            for (a, b), s in self._distinct.items()
+            if t - s < self.distinct_s and a in row_of and b in row_of
+        ]
+        if not pairs:
+            return empty, empty
+        out = np.array(pairs, dtype=np.intp)
+        return out[:, 0], out[:, 1]
+
     def reattach(
         self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
     ) -> list[tuple[int, int]]:
@@ -232,6 +251,11 @@ class NoMerging:
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
         """No pairs."""
         return []
+
+    def distinct_rows(self, table: TrackTable, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """None known."""
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty
 
     def reattach(
         self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float

@@ -69,6 +69,9 @@ class TrackerParams:
     approach_stop_s : float
         Time constant of the decay of the approach speed of two confirmed tracks that
         could both have produced one detection (0: none).
+    person_gap_m : float
+        Least distance between the estimates of two tracks known to be two people (0:
+        no constraint).
     evidence_per_hit, evidence_per_miss : float
         What a detection, and a frame that should have seen the track but did not, add
         to its evidence (``TrackTable.evidence``).
@@ -98,6 +101,7 @@ class TrackerParams:
     unseen_stop_s: float = 0.0
     shared_noise_factor: float = 1.0
     approach_stop_s: float = 0.0
+    person_gap_m: float = 0.0
     evidence_per_hit: float = 0.0
     evidence_per_miss: float = 0.0
     evidence_memory_s: float = 0.5

@@ -42,7 +42,7 @@ from openptrack_py.tracking.base import (
     SensorModel,
     Stateful,
 )
-from openptrack_py.tracking.blobs import share_blobs, shared_noise, slow_approaches
+from openptrack_py.tracking.blobs import keep_apart, share_blobs, shared_noise, slow_approaches
 from openptrack_py.tracking.bookkeeping import (
     absorb,
     damp_unseen,
@@ -390,6 +390,7 @@ class Tracker:
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used
         )
         slow_approaches(tb, gated, dt, self.params.approach_stop_s)
+        keep_apart(tb, *self.merger.distinct_rows(tb, t), self.params.person_gap_m)
         prior_support = tb.support[rows].copy()
         self._update_support(rows, dets.sensor_id, t)
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))

@@ -151,6 +151,9 @@ class NeverMerge:
     def continuations(self, table: TrackTable, t: float, lost_after_s: float) -> np.ndarray:
         return np.zeros(len(table), dtype=bool)
 
+    def distinct_rows(self, table: TrackTable, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+
 
 @dataclass
 class ForgetfulIdentity(NullIdentity):

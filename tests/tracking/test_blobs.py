@@ -1,4 +1,5 @@
-"""Two people within one detection's reach: tracks on a collision course slow down."""
+"""Two people within one detection's reach: tracks on a collision course slow down, and two
+people's tracks are never estimated closer than a body's depth."""
 
 from __future__ import annotations
 
@@ -7,8 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from openptrack_py.tracking.blobs import slow_approaches
+from openptrack_py.config import TrackerConfig
+from openptrack_py.tracking import build_tracker
+from openptrack_py.tracking.blobs import keep_apart, slow_approaches
 from openptrack_py.tracking.state import TrackTable
+from tests.tracking.helpers import FRAME, T0, det, make_batch
 
 
 def _table(states: list[tuple[float, float, float, float]], confirmed: list[bool]) -> TrackTable:
@@ -77,3 +81,68 @@ def test_three_tracks_in_one_blob_stop_closing_in_pairwise() -> None:
         u = tb.x[b, 0:2] - tb.x[a, 0:2]
         assert (tb.x[a, 2:4] - tb.x[b, 2:4]) @ u / np.linalg.norm(u) < 1e-3
     np.testing.assert_allclose(tb.x[:, 2:4].sum(axis=0), momentum, atol=1e-12)
+
+
+def _with_cov(tb: TrackTable, variances: list[float]) -> TrackTable:
+    """Position variances ``variances``, velocity 1 and position-velocity 0.5 times them."""
+    cov = np.zeros((len(variances), 4, 4))
+    for k, v in enumerate(variances):
+        cov[k] = v * np.array([[1, 0, 0.5, 0], [0, 1, 0, 0.5], [0.5, 0, 1, 0], [0, 0.5, 0, 1]])
+    tb.cov = cov
+    return tb
+
+
+def test_two_peoples_estimates_are_pushed_a_body_apart_by_their_share_of_uncertainty() -> None:
+    tb = _with_cov(_table([(0.0, 0.0, 1.0, 0.0), (0.05, 0.0, 0.0, 0.0)], [True] * 2), [0.03, 0.01])
+    before = tb.x.copy()
+    keep_apart(tb, np.array([0]), np.array([1]), 0.2)
+    assert tb.x[1, 0] - tb.x[0, 0] == pytest.approx(0.2)  # apart, in the same order
+    # the more uncertain track moves three times as far; velocities move with positions
+    moved = tb.x - before
+    assert moved[0, 0] == pytest.approx(-3 * moved[1, 0])
+    assert moved[0, 2] == pytest.approx(0.5 * moved[0, 0])
+    assert moved[1, 2] == pytest.approx(0.5 * moved[1, 0])
+    np.testing.assert_array_equal(moved[:, [1, 3]], 0.0)  # nothing across the line
+
+
+@pytest.mark.parametrize(
+    ("states", "gap"),
+    [
+        ([(0.0, 0.0, 0.0, 0.0), (0.0, 0.25, 0.0, 0.0)], 0.2),  # already a body apart
+        ([(0.0, 0.0, 0.0, 0.0), (0.0, 0.05, 0.0, 0.0)], 0.0),  # the rule off
+        ([(0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0)], 0.2),  # one spot: no side to push to
+    ],
+    ids=["apart", "off", "coincident"],
+)
+def test_nothing_else_is_pushed(
+    states: list[tuple[float, float, float, float]], gap: float
+) -> None:
+    tb = _with_cov(_table(states, [True, True]), [0.01, 0.01])
+    before = tb.x.copy()
+    keep_apart(tb, np.array([0]), np.array([1]), gap)
+    np.testing.assert_array_equal(tb.x, before)
+
+
+def _meet_and_part(s: float) -> tuple[float, float]:
+    """Where A and B are ``s`` seconds in: they walk up to each other at 1 m/s each, stand
+    0.3 m apart for a second, and walk back the way they came."""
+    walked = max(min(s, 2.35) - max(s - 3.35, 0.0), 0.0)
+    return -2.5 + walked, 2.5 - walked
+
+
+@pytest.mark.parametrize(("gap", "kept"), [(0.2, True), (0.0, False)], ids=["on", "off"])
+def test_two_people_who_meet_in_one_blob_part_with_their_own_ids(gap: float, kept: bool) -> None:
+    # Closer than 0.45 m they come out as one blob at their midpoint. The blob is one
+    # track's detection; the other track coasts on through it unless the two are kept a
+    # body apart, and when they part each track takes the other person.
+    tracker = build_tracker(TrackerConfig(person_gap_m=gap))
+    owners = []
+    for k in range(int(5.5 / FRAME)):
+        a, b = _meet_and_part(k * FRAME)
+        dets = [det((a + b) / 2, 0.0)] if b - a < 0.45 else [det(a, 0.0), det(b, 0.0)]
+        out = tracker.step(make_batch(T0 + k * FRAME, dets, seq=k))
+        if k in (int(1.5 / FRAME), int(5.5 / FRAME) - 1):  # before they meet, at the end
+            x = {tr.id: tr.x for tr in out.tracks}
+            owners.append([min(x, key=lambda i: abs(x[i] - p)) for p in (a, b)])
+    assert len(set(owners[0])) == 2
+    assert (owners[1] == owners[0]) is kept

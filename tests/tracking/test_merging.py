@@ -58,6 +58,20 @@ def test_tracks_seen_in_one_frame_are_two_people() -> None:
         assert merger.merge(table, t) == []
 
 
+def test_tracks_seen_in_one_frame_are_known_apart_for_distinct_s() -> None:
+    merger = TrackMerger(distance_m=0.35, after_s=0.5, distinct_s=5.0)
+    table = _table([(1.0, 1.0), (3.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -5.0, -1.0])
+    assert [r.tolist() for r in merger.distinct_rows(table, 0.0)] == [[], []]
+    merger.observe(table, np.array([0, 1, 2]), 0.0)  # 1 is too far to be confused
+    assert [r.tolist() for r in merger.distinct_rows(table, 4.9)] == [[0], [2]]
+    table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
+    table.ids = np.array([2, 3])  # track 1 has ended: rows follow the ids
+    assert [r.tolist() for r in merger.distinct_rows(table, 4.9)] == [[], []]
+    merger.observe(table, np.array([0, 1]), 5.0)
+    assert [r.tolist() for r in merger.distinct_rows(table, 9.9)] == [[0], [1]]
+    assert [r.tolist() for r in merger.distinct_rows(table, 10.1)] == [[], []]
+
+
 def test_far_or_differently_moving_tracks_never_merge() -> None:
     merger = TrackMerger(distance_m=0.35, after_s=0.5)
     table = _table([(1.0, 1.0), (1.6, 1.0)], first_seen=[0.0, 0.0])
