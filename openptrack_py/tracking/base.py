@@ -197,8 +197,10 @@ class IdentityModel(Protocol):
     needs_looks: bool
     """Whether the tracker must read the detections' looks (``DetectionArrays.looks``)."""
 
-    def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
-        """Extra cost ``(N, M)`` of each pair, or ``None`` for no opinion."""
+    def cost(
+        self, table: TrackTable, dets: DetectionArrays, t: float, allowed: np.ndarray
+    ) -> np.ndarray | None:
+        """Extra cost ``(N, M)`` of the pairs ``allowed`` (others: any), ``None``: no opinion."""
 
     def observe(
         self,

@@ -361,7 +361,7 @@ class Tracker:
             if density > 0:
                 allowed &= d2 + logdet <= -2.0 * math.log(2.0 * math.pi * density)
         cost = self._base_cost(d2, logdet, dets)
-        extra = self.identity.cost(tb, dets, t)
+        extra = self.identity.cost(tb, dets, t, allowed)
         if extra is not None:
             cost = cost + extra
         pairs = self._assign_by_stage(cost, allowed)

@@ -52,17 +52,15 @@ from openptrack_py.config.identity import IdentityConfig
 from openptrack_py.tracking.identity.heights import HeightBias
 from openptrack_py.tracking.identity.likelihood import (
     ISOLATION_M,
+    PAIRWISE,
     DistanceLikelihood,
-    cosine_distance,
     distance_samples,
-    height_distance,
-    hellinger,
     rowwise_distance,
 )
 from openptrack_py.tracking.identity.models import PooledIdentity, TrackLooks, TrackModels
 from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
 from openptrack_py.tracking.identity.roster import Roster
-from openptrack_py.tracking.neighbours import close_pairs
+from openptrack_py.tracking.neighbours import close_pairs, count_within
 from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
 
 NAME_EVIDENCE_BOUND = 4.0
@@ -197,10 +195,12 @@ class AppearanceIdentity:
 
     # ------------------------------------------------------------ association
 
-    def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
-        """``-(w_c LLR_colour + w_f c LLR_embedding + w_h LLR_height)`` of every pair.
+    def cost(
+        self, table: TrackTable, dets: DetectionArrays, t: float, allowed: np.ndarray
+    ) -> np.ndarray | None:
+        """``-(w_c LLR_colour + w_f c LLR_embedding + w_h LLR_height)`` of the pairs ``allowed``.
 
-        ``None``: no opinion.
+        0 for the others (they cannot be assigned); ``None``: no opinion.
         """
         looks = dets.looks
         if looks is None or not len(table) or not len(dets):
@@ -208,14 +208,13 @@ class AppearanceIdentity:
         self.models.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
         rows = self.models.rows(table.ids)
         out = np.zeros((len(table), len(dets)))
-        ok = np.flatnonzero(rows >= 0)
-        if len(ok):
-            everyone = np.arange(len(dets))
+        ti, dj = np.nonzero(allowed & (rows >= 0)[:, None])
+        if len(ti):
             heights = None
             if self._uses_heights:
-                heights = self.height_bias.correct(dets.sensor_id, dets.xy, dets.height)
-            seen = _looks_side(looks, everyone, heights=heights)
-            out[ok] = -self._pair_llr(self._models_side(rows[ok]), seen)
+                heights = self.height_bias.correct(dets.sensor_id, dets.xy, dets.height)[dj]
+            seen = _looks_side(looks, dj, heights=heights)
+            out[ti, dj] = -self._pair_llr(self._models_side(rows[ti]), seen, rowwise=True)
         return out if out.any() else None
 
     # ----------------------------------------------------------------- events
@@ -250,7 +249,8 @@ class AppearanceIdentity:
         sure = looks.clean[cols] & (dets.confidence[cols] >= self.cfg.clean_min_confidence)
         self._seen_apart(table, rows[sure], t)
         fit_c, fit_e = m.fit_dims(looks.signature.shape[1], looks.embedding.shape[1])
-        far, alone = self._surroundings(table, dets.xy[cols])
+        where = (dets.xy[cols], table.x[:, 0:2])
+        alone = count_within(where[0], where[1], self.cfg.share_distance_m) <= 1
         # a detection with another person within a body width may be both of them in
         # one blob: its colours are theirs mixed
         clean = looks.clean[cols] & alone
@@ -263,7 +263,7 @@ class AppearanceIdentity:
             self.colour.learn(
                 *distance_samples(
                     m.sig, ready, mrows, looks.signature[cols], use & confirmed & certain,
-                    use & confirmed, far, others, table.confirmed, "hellinger",
+                    use & confirmed, where, others, table.confirmed, "hellinger",
                 )
             )  # fmt: skip
             m.learn_colour(
@@ -275,7 +275,7 @@ class AppearanceIdentity:
             self.face.learn(
                 *distance_samples(
                     m.emb, ready, mrows, looks.embedding[cols], use & confirmed & certain,
-                    use & confirmed, far, others, table.confirmed, "cosine",
+                    use & confirmed, where, others, table.confirmed, "cosine",
                 )
             )  # fmt: skip
             m.learn_embedding(
@@ -284,7 +284,7 @@ class AppearanceIdentity:
             )  # fmt: skip
         heights = dets.height[cols]
         if self._uses_heights:
-            learnable = (confirmed, certain, far, others)
+            learnable = (confirmed, certain, where, others)
             heights = self._learn_heights(table, mrows, cols, dets, clean, learnable, t)
         self._gather_evidence(mrows, cols, dets, looks, clean, heights, t)
         self._decide(table, t)
@@ -301,7 +301,7 @@ class AppearanceIdentity:
         cols: np.ndarray,
         dets: DetectionArrays,
         clean: np.ndarray,
-        learnable: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+        learnable: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray], np.ndarray],
         t: float,
     ) -> np.ndarray:
         """Learn heights from one step's updates at ``t``; return them corrected.
@@ -309,10 +309,11 @@ class AppearanceIdentity:
         Each sensor's height error, the height likelihood and the tracks' height models.
 
         ``learnable``: per update, its track confirmed and motion alone certain, and the
-        tracks far from it and every table track's model row (as for colours).
+        detections' and the tracks' positions and every table track's model row (as for
+        colours).
         """
         m, enough = self.models, self.cfg.min_observations
-        confirmed, certain, far, others = learnable
+        confirmed, certain, where, others = learnable
         raw = dets.height[cols]
         heights = self.height_bias.correct(dets.sensor_id, dets.xy[cols], raw)
         known = clean & confirmed
@@ -322,7 +323,7 @@ class AppearanceIdentity:
         self.stature.learn(
             *distance_samples(
                 m.hgt[:, None], m.hgt_n >= enough, mrows, heights[:, None],
-                clean & confirmed & certain, clean & confirmed, far, others, table.confirmed,
+                clean & confirmed & certain, clean & confirmed, where, others, table.confirmed,
                 "height",
             )
         )  # fmt: skip
@@ -469,21 +470,20 @@ class AppearanceIdentity:
 
     # --------------------------------------------------------------- learning
 
-    def _surroundings(self, table: TrackTable, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Where each detection is among the tracks.
+    def _pair_llr(self, a: _Side, b: _Side, rowwise: bool = False) -> np.ndarray:
+        """Log-likelihood ratio of "same person" (all three cues).
 
-        Per detection: which tracks are far (certainly someone else), and whether no
-        other track is within ``share_distance_m`` (alone).
+        ``(len(a), len(b))`` for every pair, or ``(len(a),)`` for the pairs ``a[k]``,
+        ``b[k]`` when ``rowwise``.
         """
-        d = xy[:, None, :] - table.x[None, :, 0:2]
-        gap2 = d[..., 0] ** 2 + d[..., 1] ** 2
-        far = gap2 > ISOLATION_M**2
-        alone = np.count_nonzero(gap2 <= self.cfg.share_distance_m**2, axis=1) <= 1
-        return far, alone
 
-    def _pair_llr(self, a: _Side, b: _Side) -> np.ndarray:
-        """Log-likelihood ratio ``(len(a), len(b))`` of "same person" (all three cues)."""
-        out = np.zeros((len(a.sig), len(b.sig)))
+        def dist(kind: str, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+            return rowwise_distance(kind, x, y) if rowwise else PAIRWISE[kind](x, y)
+
+        def outer(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+            return x * y if rowwise else x[:, None] * y[None, :]
+
+        out = np.zeros(len(a.sig) if rowwise else (len(a.sig), len(b.sig)))
         cfg = self.cfg
         dim = a.sig.shape[1]
         if (
@@ -493,12 +493,12 @@ class AppearanceIdentity:
             and a.sig_ok.any()
             and b.sig_ok.any()
         ):
-            llr = self.colour.llr(hellinger(a.sig, b.sig))
-            out += cfg.appearance_weight * llr * (a.sig_ok[:, None] & b.sig_ok[None, :])
+            llr = self.colour.llr(dist("hellinger", a.sig, b.sig))
+            out += cfg.appearance_weight * llr * outer(a.sig_ok, b.sig_ok)
         dim = a.emb.shape[1]
         if self.face.ready and dim and dim == b.emb.shape[1] and a.emb_w.any() and b.emb_w.any():
-            llr = self.face.llr(cosine_distance(a.emb, b.emb))
-            out += cfg.embedding_weight * llr * a.emb_w[:, None] * b.emb_w[None, :]
+            llr = self.face.llr(dist("cosine", a.emb, b.emb))
+            out += cfg.embedding_weight * llr * outer(a.emb_w, b.emb_w)
         if (
             self._uses_heights
             and self.stature.ready
@@ -507,8 +507,8 @@ class AppearanceIdentity:
             and a.hgt_ok.any()
             and b.hgt_ok.any()
         ):
-            llr = self.stature.llr(height_distance(a.hgt[:, None], b.hgt[:, None]))
-            out += cfg.height_weight * llr * (a.hgt_ok[:, None] & b.hgt_ok[None, :])
+            llr = self.stature.llr(dist("height", a.hgt[:, None], b.hgt[:, None]))
+            out += cfg.height_weight * llr * outer(a.hgt_ok, b.hgt_ok)
         return out
 
     def _models_side(

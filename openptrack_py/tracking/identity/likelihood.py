@@ -30,6 +30,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import isotonic_regression
 
+from openptrack_py.tracking.neighbours import far_pairs
+
 BINS = 32
 """Histogram bins over distances in [0, 1]."""
 PRIOR = 2.0
@@ -139,7 +141,8 @@ def height_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.minimum(np.abs(a - b.T) / HEIGHT_RANGE_M, 1.0)
 
 
-_PAIRWISE = {"hellinger": hellinger, "cosine": cosine_distance, "height": height_distance}
+PAIRWISE = {"hellinger": hellinger, "cosine": cosine_distance, "height": height_distance}
+"""Each distance between every row of one set and every row of another, by kind."""
 
 
 def rowwise_distance(kind: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -159,7 +162,7 @@ def distance_samples(
     looks: np.ndarray,
     same_ok: np.ndarray,
     use: np.ndarray,
-    far: np.ndarray,
+    where: tuple[np.ndarray, np.ndarray],
     others: np.ndarray,
     confirmed: np.ndarray,
     kind: str,
@@ -169,8 +172,10 @@ def distance_samples(
     ``refs`` are the tracks' models (``ready`` where settled), ``mrows`` each update's
     model row and ``looks`` its detection's look. *Same*: the updates ``same_ok`` (motion
     alone made them certain) against their own track's model. *Different*: the updates
-    ``use`` against the models of the confirmed tracks ``far`` from them (``others``:
-    the model row of every track of the table, ``-1`` for none).
+    ``use`` against the models of the confirmed tracks more than :data:`ISOLATION_M`
+    from them, the first :data:`MAX_DIFFERENT_SAMPLES` such pairs in update order.
+    ``where``: the updates' detection positions and every table track's position;
+    ``others``: the model row of every track of the table, ``-1`` for none.
     """
     same_sel = same_ok & ready[mrows]
     same = rowwise_distance(kind, refs[mrows[same_sel]], looks[same_sel])
@@ -180,6 +185,7 @@ def distance_samples(
     sel = np.flatnonzero(use)
     if len(sel) and valid.any():
         cand = np.flatnonzero(valid)
-        d = _PAIRWISE[kind](looks[sel], refs[others[cand]])
-        different = d[far[sel][:, cand]][:MAX_DIFFERENT_SAMPLES]
+        det_xy, track_xy = where
+        i, j = far_pairs(det_xy[sel], track_xy[cand], ISOLATION_M, MAX_DIFFERENT_SAMPLES)
+        different = rowwise_distance(kind, looks[sel[i]], refs[others[cand[j]]])
     return same, different

@@ -17,7 +17,9 @@ class NullIdentity:
 
     needs_looks = False
 
-    def cost(self, table: TrackTable, dets: DetectionArrays, t: float) -> np.ndarray | None:
+    def cost(
+        self, table: TrackTable, dets: DetectionArrays, t: float, allowed: np.ndarray
+    ) -> np.ndarray | None:
         """No extra association cost."""
         return None
 
