@@ -287,8 +287,7 @@ class Tracker:
     def _restore(self, snapshot: _Snapshot) -> None:
         self.table, self.time, self.max_id = snapshot.table, snapshot.time, snapshot.max_id
         # what happened after the snapshot is undone, and will be counted again on replay
-        self.counters["tracks_started"] = snapshot.started
-        self.counters["tracks_deleted"] = snapshot.deleted
+        self.counters.update(tracks_started=snapshot.started, tracks_deleted=snapshot.deleted)
         for (role, stateful), state in zip(self._stateful(), snapshot.roles, strict=True):
             if stateful:
                 role.restore(state)  # type: ignore[attr-defined]
