@@ -447,12 +447,13 @@ class AppearanceIdentity:
             looks = dets.looks
             seen = _looks_side(looks, cols)
             lone, part = who[: len(lonely)], who[len(lonely) :]
-            alone = self._pair_llr(seen, self._models_side(part, settled=m.sig_n[part] >= 1))
+            partner_side = self._models_side(part, settled=m.sig_n[part] >= 1)
+            alone = self._pair_llr(seen, partner_side, rowwise=True)
             both = _Side(
                 0.5 * (m.sig[lone] + m.sig[part]), np.ones(len(lone), dtype=bool),
                 m.emb[part], np.zeros(len(part)),
             )  # fmt: skip
-            ok &= self._pair_llr(seen, both).diagonal() >= alone.diagonal()
+            ok &= self._pair_llr(seen, both, rowwise=True) >= alone
         for k in np.flatnonzero(ok).tolist():
             self.together[pairs[k]] = t
         return ok
