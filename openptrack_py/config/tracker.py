@@ -173,6 +173,13 @@ class TrackerConfig(StrictModel):
         standing close come out of a detector as one blob) updates its track with this
         many times its noise, so the track is not dragged onto the other person's course
         (1: no difference).
+    shared_noise_pda : bool
+        Widen that noise by how likely the detection is to be another track's instead
+        of always by ``shared_noise_factor`` (probabilistic data association, Bar-Shalom
+        and Tse 1975; the factor becomes the largest widening): a detection exactly
+        between two tracks counts half, one plainly its own track's counts whole. Under
+        noisy detections in a crowd, almost every detection is within two tracks' gates,
+        and a fixed factor leaves every track nearly without updates.
     approach_stop_s : float
         Two confirmed tracks that could both have produced one detection belong to
         people close together; while they are on a collision course, the speed at which
@@ -280,6 +287,7 @@ class TrackerConfig(StrictModel):
     occlusion_aware_support: bool = False
     unseen_stop_s: float = Field(1.0, ge=0.0, le=60.0)
     shared_noise_factor: float = Field(10.0, ge=1.0, le=100.0)
+    shared_noise_pda: bool = True
     approach_stop_s: float = Field(0.0, ge=0.0, le=60.0)
     person_gap_m: float = Field(0.2, ge=0.0, le=1.0)
     frame_id: Name | None = None

@@ -72,31 +72,64 @@ def share_blobs(
 
 def shared_noise(
     r: np.ndarray,
+    rows: np.ndarray,
     cols: np.ndarray,
     blob: np.ndarray,
     gated: np.ndarray,
     confirmed: np.ndarray,
     factor: float,
+    loglik: np.ndarray | None = None,
 ) -> np.ndarray:
     """The noise ``r (n, dim, dim)`` of each pair's detection, widened where it is shared.
 
-    A detection two confirmed tracks could both have produced may be both people in one
-    blob: it pulls its track less (``factor``), so neither is dragged onto the other's
-    course. A detection explicitly shared (``blob``) also gets a body radius of extra
-    uncertainty for every track it updates, since each person is up to that far from the
-    blob's centroid: both tracks stay ready for the two detections when they part.
+    A detection two confirmed tracks could both have produced may be either person, or
+    both in one blob: it pulls its track less, so neither is dragged onto the other's
+    course. By how much follows probabilistic data association (Bar-Shalom and Tse,
+    1975): the detection is the pair's track's with probability ``beta``, its
+    likelihood under that track over the sum of its likelihoods under every confirmed
+    track whose gate it is in (``loglik (n_tracks, n_detections)``, the pairs' log
+    Gaussian likelihoods), and its noise is divided by ``beta``, never widened more
+    than ``factor``. A detection exactly between two tracks counts half; one that is
+    plainly its own track's counts whole. Without ``loglik`` every shared detection is
+    widened by ``factor``. A detection explicitly shared (``blob``) is widened by
+    ``factor`` and gets a body radius of extra uncertainty for every track it updates,
+    since each person is up to that far from the blob's centroid: both tracks stay
+    ready for the two detections when they part.
     """
     out = r
     if factor > 1.0:
-        shared = blob | ((gated[:, cols] & confirmed[:, None]).sum(axis=0) >= 2)
-        if shared.any():
-            out = out.copy()
-            out[shared] *= factor
+        rivals = gated[:, cols] & confirmed[:, None]
+        shared = rivals.sum(axis=0) >= 2
+        widen = np.where(blob | shared, factor, 1.0)
+        if loglik is not None and shared.any():
+            # one of several people, not several in one blob: every rival has its own
+            taken = np.zeros(len(gated), dtype=bool)
+            taken[rows[~blob]] = True
+            one = shared & ~blob & ~(rivals & ~taken[:, None]).any(axis=0)
+            beta = _own_share(loglik, rows[one], cols[one], rivals[:, one])
+            widen[one] = 1.0 / np.maximum(beta, 1.0 / factor)
+        if (widen > 1.0).any():
+            out = out * widen[:, None, None]
     if blob.any():
         in_blob = np.isin(cols, cols[blob])
         out = out.copy()
         out[in_blob, 0:2, 0:2] += BLOB_RADIUS_M**2 * np.eye(2)
     return out
+
+
+def _own_share(
+    loglik: np.ndarray, rows: np.ndarray, cols: np.ndarray, rivals: np.ndarray
+) -> np.ndarray:
+    """Probability that detection ``cols[k]`` is track ``rows[k]``'s, among ``rivals[:, k]``.
+
+    Each track's odds are its likelihood (``loglik`` is ``(n_tracks, n_detections)``);
+    the pair's own track counts once whether or not it is among the rivals.
+    """
+    ll = np.where(rivals, loglik[:, cols], -np.inf)
+    ll[rows, np.arange(len(cols))] = loglik[rows, cols]
+    top = ll.max(axis=0)
+    odds = np.exp(ll - top)
+    return odds[rows, np.arange(len(cols))] / odds.sum(axis=0)
 
 
 def slow_approaches(tb: TrackTable, gated: np.ndarray, dt: float, stop_s: float) -> None:

@@ -84,6 +84,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             occlusion_twin_m=(2.0 * cfg.merge_distance_m if cfg.occlusion_aware_support else 0.0),
             unseen_stop_s=cfg.unseen_stop_s,
             shared_noise_factor=cfg.shared_noise_factor,
+            shared_noise_pda=cfg.shared_noise_pda,
             approach_stop_s=cfg.approach_stop_s,
             person_gap_m=cfg.person_gap_m,
             evidence_per_hit=math.log(

@@ -66,6 +66,9 @@ class TrackerParams:
     shared_noise_factor : float
         Factor on the noise of a detection that two confirmed tracks could both have
         produced (two people in one blob), so it drags its track less.
+    shared_noise_pda : bool
+        Widen that noise by the odds that the detection is its track's (probabilistic
+        data association), ``shared_noise_factor`` at most; otherwise by the factor.
     approach_stop_s : float
         Time constant of the decay of the approach speed of two confirmed tracks that
         could both have produced one detection (0: none).
@@ -100,6 +103,7 @@ class TrackerParams:
     occlusion_twin_m: float = 0.0
     unseen_stop_s: float = 0.0
     shared_noise_factor: float = 1.0
+    shared_noise_pda: bool = False
     approach_stop_s: float = 0.0
     person_gap_m: float = 0.0
     evidence_per_hit: float = 0.0

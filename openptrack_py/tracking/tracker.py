@@ -155,9 +155,7 @@ class Tracker:
         self.identity: IdentityModel = identity if identity is not None else NullIdentity()
         self.params = params if params is not None else TrackerParams()
         p = self.params
-        self.history: ReplayHistory[_Snapshot] = ReplayHistory(
-            p.max_lateness_s, p.max_replay_steps
-        )
+        self.history = ReplayHistory[_Snapshot](p.max_lateness_s, p.max_replay_steps)
         self.ukf = UnscentedKalmanFilter(MerweSigmaPoints(4))
         self.table = TrackTable()
         self.time: float | None = None
@@ -382,9 +380,11 @@ class Tracker:
         own_rows, own_cols = rows, cols
         rows, cols, blob = share_blobs(tb, self.identity, dets, rows, cols, d2, gated, t)
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
+        loglik = -0.5 * (d2 + logdet) if self.params.shared_noise_pda else None
         r_used = shared_noise(
-            r[rows, cols], cols, blob, gated, tb.confirmed, self.params.shared_noise_factor
-        )
+            r[rows, cols], rows, cols, blob, gated, tb.confirmed,
+            self.params.shared_noise_factor, loglik,
+        )  # fmt: skip
         tb.x[rows], tb.cov[rows] = self.ukf.update(
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used
         )

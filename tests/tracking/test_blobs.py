@@ -10,7 +10,12 @@ import pytest
 
 from openptrack_py.config import TrackerConfig
 from openptrack_py.tracking import build_tracker
-from openptrack_py.tracking.blobs import keep_apart, slow_approaches
+from openptrack_py.tracking.blobs import (
+    BLOB_RADIUS_M,
+    keep_apart,
+    shared_noise,
+    slow_approaches,
+)
 from openptrack_py.tracking.state import TrackTable
 from tests.tracking.helpers import FRAME, T0, det, make_batch
 
@@ -146,3 +151,76 @@ def test_two_people_who_meet_in_one_blob_part_with_their_own_ids(gap: float, kep
             owners.append([min(x, key=lambda i: abs(x[i] - p)) for p in (a, b)])
     assert len(set(owners[0])) == 2
     assert (owners[1] == owners[0]) is kept
+
+
+def _widening(
+    loglik: list[list[float]],
+    rows: list[int],
+    cols: list[int],
+    gated: list[list[bool]],
+    confirmed: list[bool],
+    blob: list[bool] | None = None,
+    factor: float = 10.0,
+) -> np.ndarray:
+    """The factor ``shared_noise`` puts on each pair's (unit) noise."""
+    r = np.repeat(np.eye(2)[None], len(rows), axis=0)
+    out = shared_noise(
+        r,
+        np.array(rows),
+        np.array(cols),
+        np.array(blob if blob is not None else [False] * len(rows)),
+        np.array(gated),
+        np.array(confirmed),
+        factor,
+        np.array(loglik),
+    )
+    return out[:, 0, 0]
+
+
+def test_a_detection_two_tracks_share_equally_counts_half_when_each_has_its_own() -> None:
+    # two tracks, two detections, each in both gates: which is which is uncertain, but
+    # each track has a detection, so neither is two people in one blob
+    ll = [[-1.0, -1.0], [-1.0, -1.0]]
+    widen = _widening(ll, [0, 1], [0, 1], [[True, True], [True, True]], [True, True])
+    np.testing.assert_allclose(widen, [2.0, 2.0])
+
+
+def test_the_widening_is_the_inverse_odds_of_the_pairs_own_track() -> None:
+    # detection 0 is three times likelier under track 0 than under track 1: odds 3/4
+    ll = [[math.log(3.0), -5.0], [0.0, 0.0]]
+    widen = _widening(ll, [0, 1], [0, 1], [[True, False], [True, True]], [True, True])
+    assert widen[0] == pytest.approx(4.0 / 3.0)
+    assert widen[1] == pytest.approx(1.0)  # detection 1 is in track 1's gate alone
+
+
+def test_an_unlikely_pair_is_widened_by_the_factor_at_most() -> None:
+    ll = [[-30.0, 0.0], [0.0, 0.0]]
+    widen = _widening(ll, [0, 1], [0, 1], [[True, True], [True, True]], [True, True])
+    assert widen[0] == pytest.approx(10.0)
+
+
+def test_a_detection_a_rival_with_no_detection_of_its_own_may_share_is_widened_fully() -> None:
+    # track 1 has no detection in this frame: detection 0 may be both people in a blob
+    ll = [[0.0], [0.0]]
+    widen = _widening(ll, [0], [0], [[True], [True]], [True, True])
+    assert widen[0] == pytest.approx(10.0)
+    # an explicit blob share is widened fully too
+    widen = _widening(ll, [0, 1], [0, 0], [[True], [True]], [True, True], blob=[False, True])
+    np.testing.assert_allclose(widen, 10.0 + BLOB_RADIUS_M**2)  # plus a body's radius
+
+
+def test_without_likelihoods_every_shared_detection_is_widened_by_the_factor() -> None:
+    r = np.repeat(np.eye(2)[None], 2, axis=0)
+    gated = np.ones((2, 2), dtype=bool)
+    out = shared_noise(r, np.array([0, 1]), np.array([0, 1]), np.zeros(2, bool), gated,
+                       np.array([True, True]), 10.0)  # fmt: skip
+    np.testing.assert_allclose(out[:, 0, 0], [10.0, 10.0])
+
+
+def test_a_tentative_tracks_detection_is_weighed_against_the_confirmed_rivals() -> None:
+    # detection 2 is in the gates of confirmed tracks 0 and 1, each with a detection of
+    # its own, and of tentative track 2, whose it is: its own odds count once, 1 in 3
+    ll = np.zeros((3, 3)).tolist()
+    gated = [[True, False, True], [False, True, True], [False, False, True]]
+    widen = _widening(ll, [0, 1, 2], [0, 1, 2], gated, [True, True, False])
+    np.testing.assert_allclose(widen, [1.0, 1.0, 3.0])
