@@ -149,6 +149,12 @@ class TrackerConfig(StrictModel):
     merge_max_speed_difference_mps : float
         Largest difference of the two tracks' velocities (a crossing differs by twice a
         walking speed).
+    merge_by_noise : bool
+        Widen ``merge_distance_m`` and ``merge_max_speed_difference_mps`` with the
+        detections' learned noise: two tracks of one person fed by noisy detections
+        drift further apart, so they count as close while a detection of either would
+        fall within the other's association gate (``gate_probability``), and as moving
+        alike while their velocities differ by no more than their uncertainty allows.
     merge_after_s : float
         How long they must stay so before they are merged into the older one (0
         disables merging).
@@ -282,6 +288,7 @@ class TrackerConfig(StrictModel):
     merge_distance_m: float = Field(0.45, ge=0.0, le=2.0)
     merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
+    merge_by_noise: bool = True
     support_rate: float = Field(0.1, gt=0.0, le=1.0)
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
     occlusion_aware_support: bool = False

@@ -153,8 +153,13 @@ class SensorModel(Protocol):
 class Merger(Protocol):
     """Finds confirmed tracks that follow one person."""
 
-    def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
-        """Tracks ``rows`` were all detected in one sensor frame at ``t``."""
+    def observe(
+        self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None
+    ) -> None:
+        """Tracks ``rows`` were all detected in one sensor frame at ``t``.
+
+        ``noise`` is each row's measurement covariance ``(len(rows), 2, 2)``.
+        """
 
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:
         """Pairs ``(keep_row, drop_row)`` to merge at ``t``."""

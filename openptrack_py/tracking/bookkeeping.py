@@ -234,7 +234,12 @@ def learnable_updates(
     """The updates of one batch that a sensor model may learn from, or ``None``.
 
     Only settled, unambiguous ones: a confirmed track at least a second old, with one
-    detection in its gate, that detection in no other track's gate. ``predicted``,
+    detection in its gate, that detection in no other confirmed track's gate. A
+    tentative track does not make a pair ambiguous: it is unproven, and where the
+    sensors are noisier than configured their own detections of the person start
+    tentative tracks beside it, which would otherwise keep the noise from being learned
+    (one person walking past three sensors with 0.25 m of noise per axis: 61-69 pairs
+    learned per sensor in 12 s, the first noise fit after 10 s). ``predicted``,
     ``pzz`` and ``model`` are per assigned pair: the predicted position, its covariance
     and the configured (unscaled) measurement covariance.
     """
@@ -242,7 +247,7 @@ def learnable_updates(
         tb.confirmed[rows]
         & (t - tb.first_seen[rows] >= 1.0)
         & (gated[rows].sum(axis=1) == 1)
-        & (gated[:, cols].sum(axis=0) == 1)
+        & ((gated[:, cols] & tb.confirmed[:, None]).sum(axis=0) == 1)
     )
     if not clear.any():
         return None

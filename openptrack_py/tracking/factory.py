@@ -61,7 +61,10 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             max_bias_m=cfg.max_bias_m,
         ),
         merger=TrackMerger(
-            cfg.merge_distance_m, cfg.merge_after_s, cfg.merge_max_speed_difference_mps
+            cfg.merge_distance_m,
+            cfg.merge_after_s,
+            cfg.merge_max_speed_difference_mps,
+            gate=float(chi2.ppf(cfg.gate_probability, 2)) if cfg.merge_by_noise else None,
         ),
         identity=build_identity(cfg),
         params=TrackerParams(

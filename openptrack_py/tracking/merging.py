@@ -9,9 +9,24 @@ any sensor, whether or not its detections still keep the track alive), and no
 single sensor frame has detected both of them at once in the last ``distinct_s`` (one
 sensor seeing two blobs in one frame is proof of two people: two people walking side by
 side are never merged).
+
+How close is close depends on how noisy the detections are: each sensor's errors pull
+the track it feeds its own way, so two tracks of one person drift apart by about the
+detections' noise, and their velocities by about the tracks' velocity uncertainty.
+With a ``gate`` the merger keeps, per track, the average measurement variance of the
+detections that updated it (as scaled by the sensors' learned noise,
+:class:`~openptrack_py.tracking.sensor_model.OnlineSensorModel`); a pair is close within
+``max(distance_m, sqrt(gate * (v_a + v_b)))``, where a detection of the person would fall
+inside either track's association gate, and moves alike within
+``max(max_speed_difference_mps, sqrt(gate * (w_a + w_b)))`` (``w`` the tracks' velocity
+variance per axis). Sensors noisier than configured widen both; in a clean room they
+stay as configured.
 """
 
 from __future__ import annotations
+
+import math
+from typing import Any
 
 import numpy as np
 
@@ -44,6 +59,12 @@ class TrackMerger:
         A lost track was walking if its estimate moved this far in its last second of
         sightings; only a walking person's lost track vouches for a new one
         (:meth:`continuations`).
+    gate : float or None
+        Squared Mahalanobis gate (chi-square, 2 degrees of freedom) by which the
+        distance and the speed difference widen with the tracks' noise; ``None`` keeps
+        them as given.
+    noise_rate : float
+        Weight of one update in a track's average measurement variance.
     """
 
     def __init__(
@@ -55,6 +76,8 @@ class TrackMerger:
         fresh_s: float = 0.3,
         reattach_speed_mps: float = 1.5,
         walking_m: float = 0.3,
+        gate: float | None = None,
+        noise_rate: float = 0.1,
     ) -> None:
         self.distance_m = distance_m
         self.after_s = after_s
@@ -63,23 +86,46 @@ class TrackMerger:
         self.fresh_s = fresh_s
         self.reattach_speed_mps = reattach_speed_mps
         self.walking_m = walking_m
+        self.gate = gate
+        self.noise_rate = noise_rate
+        self._noise_var: dict[int, float] = {}
         self._close_since: dict[tuple[int, int], float] = {}
         self._last_close: dict[tuple[int, int], float] = {}
         self._distinct: dict[tuple[int, int], float] = {}
 
-    def snapshot(self) -> tuple[dict[tuple[int, int], float], ...]:
-        """Pair timers (independent copies)."""
-        return dict(self._close_since), dict(self._last_close), dict(self._distinct)
+    def snapshot(self) -> tuple[dict[Any, float], ...]:
+        """Pair timers and the tracks' noise (independent copies)."""
+        return (
+            dict(self._close_since),
+            dict(self._last_close),
+            dict(self._distinct),
+            dict(self._noise_var),
+        )
 
-    def restore(self, state: tuple[dict[tuple[int, int], float], ...]) -> None:
+    def restore(self, state: tuple[dict[Any, float], ...]) -> None:
         """Return to a snapshot."""
-        self._close_since, self._last_close, self._distinct = (dict(d) for d in state)
+        self._close_since, self._last_close, self._distinct, self._noise_var = (
+            dict(d) for d in state
+        )
 
-    def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
-        """Tracks ``rows`` were detected in one sensor frame: close pairs are distinct."""
-        if len(rows) < 2 or self.after_s <= 0:
+    def observe(
+        self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None
+    ) -> None:
+        """Tracks ``rows`` were detected in one sensor frame: close pairs are distinct.
+
+        ``noise`` ``(len(rows), 2, 2)`` is each row's detection's measurement covariance,
+        averaged into the track's measurement variance.
+        """
+        if self.after_s <= 0:
             return
-        ii, jj = close_pairs(table.x[rows, 0:2], 2.0 * self.distance_m)
+        if noise is not None and self.gate is not None:
+            var = 0.5 * (noise[:, 0, 0] + noise[:, 1, 1])
+            for i, v in zip(table.ids[rows].tolist(), var.tolist(), strict=True):
+                old = self._noise_var.get(i)
+                self._noise_var[i] = v if old is None else old + self.noise_rate * (v - old)
+        if len(rows) < 2:
+            return
+        ii, jj = close_pairs(table.x[rows, 0:2], 2.0 * self._reach(table.ids[rows]))
         for a, b in zip(table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist(), strict=True):
             self._distinct[(a, b) if a < b else (b, a)] = t
 
@@ -189,6 +235,9 @@ class TrackMerger:
         """Pairs ``(keep_row, drop_row)`` to merge now; each row in at most one pair."""
         if self.after_s <= 0:
             return []
+        if len(self._noise_var) > 2 * len(table):  # forget the tracks that are gone
+            live = set(table.ids.tolist())
+            self._noise_var = {i: v for i, v in self._noise_var.items() if i in live}
         # detected by any sensor, whether or not that kept the track alive (every
         # detection that moves last_seen also stamps sensor_hit_t): two tracks sharing
         # one person's detections share their support too, and one of them often falls
@@ -229,11 +278,12 @@ class TrackMerger:
         if len(rows) < 2:
             return {}
         x = table.x[rows]
-        ii, jj = close_pairs(x[:, 0:2], self.distance_m)
-        dv = np.hypot(x[ii, 2] - x[jj, 2], x[ii, 3] - x[jj, 3])
-        keep = dv <= self.max_speed_difference_mps
-        ii, jj = ii[keep], jj[keep]
+        ii, jj = close_pairs(x[:, 0:2], self._reach(table.ids[rows]))
         gap = np.hypot(x[ii, 0] - x[jj, 0], x[ii, 1] - x[jj, 1])
+        dv = np.hypot(x[ii, 2] - x[jj, 2], x[ii, 3] - x[jj, 3])
+        radius, speed = self._limits(table, rows, ii, jj)
+        keep = (gap <= radius) & (dv <= speed)
+        ii, jj, gap = ii[keep], jj[keep], gap[keep]
         out = {}
         for i, j, g in zip(ii.tolist(), jj.tolist(), gap.tolist(), strict=True):
             ra, rb = int(rows[i]), int(rows[j])
@@ -241,11 +291,36 @@ class TrackMerger:
             out[(a, b) if a < b else (b, a)] = (ra, rb, g)
         return out
 
+    def _track_var(self, ids: np.ndarray) -> np.ndarray:
+        """Each track's average measurement variance per axis (0 while unknown)."""
+        return np.array([self._noise_var.get(i, 0.0) for i in ids.tolist()])
+
+    def _reach(self, ids: np.ndarray) -> float:
+        """The largest pair distance that may count as close among tracks ``ids``."""
+        if self.gate is None or not len(ids):
+            return self.distance_m
+        return max(self.distance_m, math.sqrt(self.gate * 2.0 * self._track_var(ids).max()))
+
+    def _limits(
+        self, table: TrackTable, rows: np.ndarray, ii: np.ndarray, jj: np.ndarray
+    ) -> tuple[np.ndarray | float, np.ndarray | float]:
+        """How far apart, and how differently moving, pairs ``(rows[ii], rows[jj])`` may be."""
+        if self.gate is None:
+            return self.distance_m, self.max_speed_difference_mps
+        var = self._track_var(table.ids[rows])
+        radius = np.maximum(self.distance_m, np.sqrt(self.gate * (var[ii] + var[jj])))
+        cov = table.cov[rows]
+        w = 0.5 * (cov[:, 2, 2] + cov[:, 3, 3])
+        speed = np.maximum(self.max_speed_difference_mps, np.sqrt(self.gate * (w[ii] + w[jj])))
+        return radius, speed
+
 
 class NoMerging:
     """Never merge tracks."""
 
-    def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+    def observe(
+        self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None
+    ) -> None:
         """Nothing to remember."""
 
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:

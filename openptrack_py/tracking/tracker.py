@@ -394,7 +394,7 @@ class Tracker:
         self._update_support(rows, dets.sensor_id, t)
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
-        self.merger.observe(tb, own_rows, t)
+        self.merger.observe(tb, own_rows, t, r[own_rows, own_cols, 0:2, 0:2])
         certain = None
         if self.identity.needs_looks:
             # pairs motion alone made certain: each the only one in the other's gate

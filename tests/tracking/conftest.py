@@ -137,7 +137,9 @@ class PerfectSensors:
 class NeverMerge:
     """No two tracks are ever one person."""
 
-    def observe(self, table: TrackTable, rows: np.ndarray, t: float) -> None:
+    def observe(
+        self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None
+    ) -> None:
         pass
 
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import Detection, DetectionBatch
@@ -143,3 +144,95 @@ def test_a_lost_walker_vouches_for_one_new_track_only() -> None:
     # a track that was standing still when lost vouches for none
     table.hist_xy[0, :, 0] = 2.0
     assert not merger.continuations(table, 1.0, lost_after_s=0.25).any()
+
+
+def _noisy_pair(gap: float, noise_var: float, velocity_var: float) -> list[tuple[int, int]]:
+    """Merges over 2 s of two tracks ``gap`` apart whose detections had ``noise_var``."""
+    merger = TrackMerger(distance_m=0.35, after_s=0.5, max_speed_difference_mps=0.6, gate=9.21)
+    table = _table([(1.0, 1.0), (1.0 + gap, 1.0)], first_seen=[-5.0, -1.0])
+    table.x[1, 2] += 0.9  # velocities 0.9 m/s apart
+    table.cov = np.repeat(np.diag([0.01, 0.01, velocity_var, velocity_var])[None], 2, axis=0)
+    noise = np.eye(2)[None] * noise_var
+    merger.observe(table, np.array([0]), -0.1, noise)  # each fed alone: not known apart
+    merger.observe(table, np.array([1]), -0.1, noise)
+    return sorted({p for t in np.arange(0.0, 2.0, 0.1) for p in merger.merge(table, t)})
+
+
+def test_the_merge_distance_and_speed_widen_with_the_tracks_noise() -> None:
+    # sqrt(9.21 * 2 * 0.04) = 0.86 m and sqrt(9.21 * 2 * 0.05) = 0.96 m/s
+    assert _noisy_pair(0.7, noise_var=0.04, velocity_var=0.05) == [(0, 1)]
+    # quiet detections: 0.7 m and 0.9 m/s apart are two people
+    assert _noisy_pair(0.7, noise_var=0.004, velocity_var=0.05) == []
+    assert _noisy_pair(0.7, noise_var=0.04, velocity_var=0.01) == []
+    assert _noisy_pair(0.9, noise_var=0.04, velocity_var=0.05) == []  # beyond 0.86 m
+
+
+def _one_noisy_walker(sigma_m: float, seed: int, merge_by_noise: bool = True) -> list[int]:
+    """Published tracks per frame: one person walking at 0.5 m/s for 12 s, seen by three
+    sensors at 30 Hz whose detections scatter ``sigma_m`` per axis (white)."""
+    rng = np.random.default_rng(seed)
+    tracker = build_tracker(TrackerConfig(merge_by_noise=merge_by_noise))
+    counts = []
+    for k in range(int(12.0 / FRAME)):
+        t = k * FRAME
+        for s, sensor in enumerate(("a", "b", "c")):
+            x, y = -3.0 + 0.5 * t + rng.normal(0.0, sigma_m), rng.normal(0.0, sigma_m)
+            d = Detection(x=x, y=y, z=1.0, height=1.75, confidence=0.9, distance=3.0)
+            batch = DetectionBatch(
+                sensor_id=sensor, seq=k, stamp=T0 + t + s * FRAME / 3, frame_id="world",
+                detections=(d,),
+            )  # fmt: skip
+            out = tracker.step(batch)
+        if t >= 4.0:
+            counts.append(len(out.tracks))
+    return counts
+
+
+def test_one_walker_seen_by_three_sensors_with_modest_noise_has_one_track() -> None:
+    counts = _one_noisy_walker(0.12, seed=0)
+    assert np.mean(np.array(counts) == 1) >= 0.95
+
+
+def test_one_walker_seen_by_three_sensors_with_large_noise_has_one_track() -> None:
+    # the sensors' noise is learned beside the tentative tracks the noise starts, and two
+    # tracks of the person are merged within what that noise explains
+    counts = _one_noisy_walker(0.25, seed=0)
+    assert np.mean(np.array(counts) == 1) >= 0.95
+    off = _one_noisy_walker(0.25, seed=0, merge_by_noise=False)
+    assert np.mean(np.array(off) == 1) < 0.8
+
+
+def _two_noisy_walkers(sigma_m: float, seed: int) -> list[int]:
+    """Published tracks per frame: two people walking side by side 0.7 m apart."""
+    rng = np.random.default_rng(seed)
+    tracker = build_tracker(TrackerConfig())
+    counts = []
+    for k in range(int(12.0 / FRAME)):
+        t = k * FRAME
+        for s, sensor in enumerate(("a", "b", "c")):
+            xy = np.array([[-3.0 + 0.5 * t, 0.0], [-3.0 + 0.5 * t, 0.7]])
+            xy += rng.normal(0.0, sigma_m, xy.shape)
+            dets = tuple(
+                Detection(x=x, y=y, z=1.0, height=1.75, confidence=0.9, distance=3.0)
+                for x, y in xy.tolist()
+            )
+            batch = DetectionBatch(
+                sensor_id=sensor, seq=k, stamp=T0 + t + s * FRAME / 3, frame_id="world",
+                detections=dets,
+            )  # fmt: skip
+            out = tracker.step(batch)
+        if t >= 4.0:
+            counts.append(len(out.tracks))
+    return counts
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known limitation: at 0.25 m of noise per axis, two people 0.7 m apart get "
+    "four tracks in their first two seconds (before the noise is learned); each sensor "
+    "frame has two detections, so every pair of those tracks is once detected in one "
+    "frame, counts as two people and is never merged (docs/evaluation.md)",
+)
+def test_two_walkers_side_by_side_with_large_noise_have_two_tracks() -> None:
+    counts = _two_noisy_walkers(0.25, seed=0)
+    assert np.mean(np.array(counts) == 2) >= 0.95

@@ -9,7 +9,9 @@ from scipy.stats import chi2
 from openptrack_py.config import TrackerConfig
 from openptrack_py.messages.detection import Detection, DetectionBatch
 from openptrack_py.tracking import OnlineSensorModel, build_tracker
+from openptrack_py.tracking.bookkeeping import learnable_updates
 from openptrack_py.tracking.sensor_model import SensorUpdates, gated_noise_scale
+from openptrack_py.tracking.state import DetectionArrays, TrackTable
 from tests.tracking.helpers import FRAME, T0
 
 GATE = float(chi2.ppf(0.95, 2))
@@ -149,3 +151,28 @@ def test_learned_state_survives_a_late_batch_replay() -> None:
         late.sensors.noise_scale("b", at), ontime.sensors.noise_scale("b", at)
     )
     np.testing.assert_array_equal(late.sensors.bias("b"), ontime.sensors.bias("b"))
+
+
+@pytest.mark.parametrize(("rival_confirmed", "learned"), [(False, True), (True, False)])
+def test_a_pair_is_learned_from_unless_another_confirmed_track_could_take_its_detection(
+    rival_confirmed: bool, learned: bool
+) -> None:
+    # one detection in the gates of a settled confirmed track and of another track: a
+    # tentative one (the noise's own doing, unproven) leaves the pair clear
+    tb = TrackTable()
+    tb.ids = np.array([1, 2])
+    tb.x = np.array([[0.0, 0.0, 0.0, 0.0], [0.3, 0.0, 0.0, 0.0]])
+    tb.confirmed = np.array([True, rival_confirmed])
+    tb.first_seen = np.array([-5.0, -0.5])
+    tb.multi_t = np.full(2, -np.inf)
+    tb.last_sensor = np.zeros(2, dtype=np.int64)
+    dets = DetectionArrays(
+        index=np.array([0]), xy=np.array([[0.1, 0.0]]), z=np.ones(1), height=np.ones(1),
+        confidence=np.ones(1), distance=np.full(1, 3.0), sensor_id="a",
+    )  # fmt: skip
+    gated = np.array([[True], [True]])
+    updates = learnable_updates(
+        tb, np.array([0]), np.array([0]), dets, np.zeros((1, 2)), np.eye(2)[None] * 0.01,
+        np.eye(2)[None] * 0.0064, gated, 0.0, 0, GATE,
+    )  # fmt: skip
+    assert (updates is not None) is learned
