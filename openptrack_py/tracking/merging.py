@@ -103,10 +103,9 @@ class TrackMerger:
         )
 
     def restore(self, state: tuple[dict[Any, float], ...]) -> None:
-        """Return to a snapshot."""
-        self._close_since, self._last_close, self._distinct, self._noise_var = (
-            dict(d) for d in state
-        )
+        """Return to a snapshot (one taken before the tracks' noise was kept has none)."""
+        dicts = [dict(d) for d in state] + [{} for _ in range(4 - len(state))]
+        self._close_since, self._last_close, self._distinct, self._noise_var = dicts
 
     def observe(
         self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None

@@ -236,3 +236,9 @@ def _two_noisy_walkers(sigma_m: float, seed: int) -> list[int]:
 def test_two_walkers_side_by_side_with_large_noise_have_two_tracks() -> None:
     counts = _two_noisy_walkers(0.25, seed=0)
     assert np.mean(np.array(counts) == 2) >= 0.95
+
+
+def test_a_snapshot_from_before_the_tracks_noise_was_kept_restores() -> None:
+    merger = TrackMerger(gate=9.21)
+    merger.restore(({(1, 2): 0.0}, {(1, 2): 0.0}, {}))  # a checkpoint of the older form
+    assert merger.snapshot() == ({(1, 2): 0.0}, {(1, 2): 0.0}, {}, {})
