@@ -15,7 +15,9 @@ the innovations of the confirmed tracks it updates:
   chi-square *truncated at the gate*, so ``s`` is their maximum-likelihood scale under
   that truncation (a plain average of gated distances can never exceed the gate and
   would never widen it). Only unambiguous pairs count (one detection in the track's
-  gate, one track in the detection's), ``s`` is bounded, and it is re-estimated every
+  gate, one confirmed track in the detection's: a tentative track beside the person,
+  which a noisier sensor's own detections start, does not stop the learning that would
+  end such births), ``s`` is bounded, and it is re-estimated every
   few dozen samples from the last few hundred, with the track's own uncertainty
   taken into account (the innovation's variance is the track's plus the sensor's). A
   sensor noisier than configured widens its own gate instead of spawning tracks.
