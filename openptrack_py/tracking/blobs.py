@@ -78,7 +78,7 @@ def shared_noise(
     gated: np.ndarray,
     confirmed: np.ndarray,
     factor: float,
-    loglik: np.ndarray | None = None,
+    nll: np.ndarray | None = None,
 ) -> np.ndarray:
     """The noise ``r (n, dim, dim)`` of each pair's detection, widened where it is shared.
 
@@ -87,10 +87,11 @@ def shared_noise(
     course. By how much follows probabilistic data association (Bar-Shalom and Tse,
     1975): the detection is the pair's track's with probability ``beta``, its
     likelihood under that track over the sum of its likelihoods under every confirmed
-    track whose gate it is in (``loglik (n_tracks, n_detections)``, the pairs' log
-    Gaussian likelihoods), and its noise is divided by ``beta``, never widened more
-    than ``factor``. A detection exactly between two tracks counts half; one that is
-    plainly its own track's counts whole. Without ``loglik`` every shared detection is
+    track whose gate it is in (``nll (n_tracks, n_detections)``: the association's cost,
+    minus twice each pair's log Gaussian likelihood up to a term per detection, which
+    cancels), and its noise is divided by ``beta``, never widened more than ``factor``.
+    A detection exactly between two tracks counts half; one that is plainly its own
+    track's counts whole. Without ``nll`` every shared detection is
     widened by ``factor``. A detection explicitly shared (``blob``) is widened by
     ``factor`` and gets a body radius of extra uncertainty for every track it updates,
     since each person is up to that far from the blob's centroid: both tracks stay
@@ -101,12 +102,12 @@ def shared_noise(
         rivals = gated[:, cols] & confirmed[:, None]
         shared = rivals.sum(axis=0) >= 2
         widen = np.where(blob | shared, factor, 1.0)
-        if loglik is not None and shared.any():
+        if nll is not None and shared.any():
             # one of several people, not several in one blob: every rival has its own
             taken = np.zeros(len(gated), dtype=bool)
             taken[rows[~blob]] = True
             one = shared & ~blob & ~(rivals & ~taken[:, None]).any(axis=0)
-            beta = _own_share(loglik, rows[one], cols[one], rivals[:, one])
+            beta = _own_share(nll, rows[one], cols[one], rivals[:, one])
             widen[one] = 1.0 / np.maximum(beta, 1.0 / factor)
         if (widen > 1.0).any():
             out = out * widen[:, None, None]
@@ -118,15 +119,16 @@ def shared_noise(
 
 
 def _own_share(
-    loglik: np.ndarray, rows: np.ndarray, cols: np.ndarray, rivals: np.ndarray
+    nll: np.ndarray, rows: np.ndarray, cols: np.ndarray, rivals: np.ndarray
 ) -> np.ndarray:
     """Probability that detection ``cols[k]`` is track ``rows[k]``'s, among ``rivals[:, k]``.
 
-    Each track's odds are its likelihood (``loglik`` is ``(n_tracks, n_detections)``);
-    the pair's own track counts once whether or not it is among the rivals.
+    Each track's odds are its likelihood, ``exp(-nll / 2)`` (``nll`` is ``(n_tracks,
+    n_detections)``), computed for these detections only; the pair's own track counts
+    once whether or not it is among the rivals.
     """
-    ll = np.where(rivals, loglik[:, cols], -np.inf)
-    ll[rows, np.arange(len(cols))] = loglik[rows, cols]
+    ll = np.where(rivals, -0.5 * nll[:, cols], -np.inf)
+    ll[rows, np.arange(len(cols))] = -0.5 * nll[rows, cols]
     top = ll.max(axis=0)
     odds = np.exp(ll - top)
     return odds[rows, np.arange(len(cols))] / odds.sum(axis=0)

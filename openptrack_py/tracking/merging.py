@@ -124,7 +124,9 @@ class TrackMerger:
                 self._noise_var[i] = v if old is None else old + self.noise_rate * (v - old)
         if len(rows) < 2:
             return
-        ii, jj = close_pairs(table.x[rows, 0:2], 2.0 * self._reach(table.ids[rows]))
+        ii, jj = close_pairs(
+            table.x[rows, 0:2], 2.0 * self._reach(self._track_var(table.ids[rows]))
+        )
         for a, b in zip(table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist(), strict=True):
             self._distinct[(a, b) if a < b else (b, a)] = t
 
@@ -277,10 +279,11 @@ class TrackMerger:
         if len(rows) < 2:
             return {}
         x = table.x[rows]
-        ii, jj = close_pairs(x[:, 0:2], self._reach(table.ids[rows]))
+        var = self._track_var(table.ids[rows])
+        ii, jj = close_pairs(x[:, 0:2], self._reach(var))
         gap = np.hypot(x[ii, 0] - x[jj, 0], x[ii, 1] - x[jj, 1])
         dv = np.hypot(x[ii, 2] - x[jj, 2], x[ii, 3] - x[jj, 3])
-        radius, speed = self._limits(table, rows, ii, jj)
+        radius, speed = self._limits(table, rows, var, ii, jj)
         keep = (gap <= radius) & (dv <= speed)
         ii, jj, gap = ii[keep], jj[keep], gap[keep]
         out = {}
@@ -291,22 +294,26 @@ class TrackMerger:
         return out
 
     def _track_var(self, ids: np.ndarray) -> np.ndarray:
-        """Each track's average measurement variance per axis (0 while unknown)."""
+        """Each track's average measurement variance per axis (0 while unknown or unused)."""
+        if self.gate is None:
+            return np.zeros(len(ids))
         return np.array([self._noise_var.get(i, 0.0) for i in ids.tolist()])
 
-    def _reach(self, ids: np.ndarray) -> float:
-        """The largest pair distance that may count as close among tracks ``ids``."""
-        if self.gate is None or not len(ids):
+    def _reach(self, var: np.ndarray) -> float:
+        """The largest pair distance that may count as close among tracks of ``var``."""
+        if self.gate is None or not len(var):
             return self.distance_m
-        return max(self.distance_m, math.sqrt(self.gate * 2.0 * self._track_var(ids).max()))
+        return max(self.distance_m, math.sqrt(self.gate * 2.0 * float(var.max())))
 
     def _limits(
-        self, table: TrackTable, rows: np.ndarray, ii: np.ndarray, jj: np.ndarray
+        self, table: TrackTable, rows: np.ndarray, var: np.ndarray, ii: np.ndarray, jj: np.ndarray
     ) -> tuple[np.ndarray | float, np.ndarray | float]:
-        """How far apart, and how differently moving, pairs ``(rows[ii], rows[jj])`` may be."""
+        """How far apart, and how differently moving, pairs ``(rows[ii], rows[jj])`` may be.
+
+        ``var`` is the measurement variance of each of ``rows``.
+        """
         if self.gate is None:
             return self.distance_m, self.max_speed_difference_mps
-        var = self._track_var(table.ids[rows])
         radius = np.maximum(self.distance_m, np.sqrt(self.gate * (var[ii] + var[jj])))
         cov = table.cov[rows]
         w = 0.5 * (cov[:, 2, 2] + cov[:, 3, 3])

@@ -357,10 +357,9 @@ class Tracker:
             density = self.sensors.clutter_density(dets.sensor_id)
             if density > 0:
                 allowed &= d2 + logdet <= -2.0 * math.log(2.0 * math.pi * density)
-        cost = self._base_cost(d2, logdet, dets)
+        nll = self._base_cost(d2, logdet, dets)
         extra = self.identity.cost(tb, dets, t, allowed)
-        if extra is not None:
-            cost = cost + extra
+        cost = nll if extra is None else nll + extra
         pairs = self._assign_by_stage(cost, allowed)
         if not pairs:
             self._update_support(np.zeros(0, dtype=int), dets.sensor_id, t)
@@ -380,10 +379,9 @@ class Tracker:
         own_rows, own_cols = rows, cols
         rows, cols, blob = share_blobs(tb, self.identity, dets, rows, cols, d2, gated, t)
         sub = Projection(z=proj.z[rows], pzz=proj.pzz[rows], pxz=proj.pxz[rows])
-        loglik = -0.5 * (d2 + logdet) if self.params.shared_noise_pda else None
         r_used = shared_noise(
             r[rows, cols], rows, cols, blob, gated, tb.confirmed,
-            self.params.shared_noise_factor, loglik,
+            self.params.shared_noise_factor, nll if self.params.shared_noise_pda else None,
         )  # fmt: skip
         tb.x[rows], tb.cov[rows] = self.ukf.update(
             tb.x[rows], tb.cov[rows], sub, z[rows, cols], r_used

@@ -172,7 +172,7 @@ def _widening(
         np.array(gated),
         np.array(confirmed),
         factor,
-        np.array(loglik),
+        -2.0 * np.array(loglik),  # the association cost: -2 log-likelihood
     )
     return out[:, 0, 0]
 
