@@ -5,7 +5,8 @@ the simulator's rendering of that sensor), detects people and publishes a Detect
 on ``opt/<site>/detections/<sensor_id>`` at the sensor's rate, dropping the oldest frames
 when it falls behind. The sensor's pose and clock offset come from its calibration entry
 (the file, or the master's ``calibration`` node when the file is not on this machine),
-and calibration updates published on ``opt/<site>/calibration/<sensor_id>`` apply live.
+so do its intrinsics when the entry has them, and calibration updates published on
+``opt/<site>/calibration/<sensor_id>`` apply live.
 
 Typical usage::
 
@@ -42,10 +43,13 @@ def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     except SourceError as exc:
         raise ConfigError(f"sensors.{sensor.id}: {exc}") from None
     calibration = None if entry is None else (entry.world_from_optical(), entry.clock_offset_s)
-    service = DetectorService(node, sensor, cfg.detector, source, calibration)
+    intrinsics = None if entry is None else entry.pinhole()
+    service = DetectorService(node, sensor, cfg.detector, source, calibration, intrinsics)
 
     def apply(update: SensorCalibration) -> None:
-        service.apply_calibration(update.world_from_optical(), update.clock_offset_s)
+        service.apply_calibration(
+            update.world_from_optical(), update.clock_offset_s, update.pinhole()
+        )
 
     follower = CalibrationFollower(node, sensor.id, apply)
     try:

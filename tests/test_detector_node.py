@@ -31,7 +31,7 @@ from openptrack_py.config import (
     ZenohConfig,
     load_network,
 )
-from openptrack_py.detection.frame import Frame
+from openptrack_py.detection.frame import Frame, Intrinsics
 from openptrack_py.detection.service import DetectorService
 from openptrack_py.launch import plan_nodes
 from openptrack_py.messages import (
@@ -292,6 +292,55 @@ def test_service_detects_only_the_newest_frame_and_counts_the_rest_as_dropped() 
     for batch in batches:
         assert batch.sensor_id == "cam" and batch.frame_id == "world"
         assert _finds_both_people(batch.detections), batch.detections
+
+
+class _Frames:
+    """A source that yields its frames once, then ends."""
+
+    name = "frames"
+
+    def __init__(self, frames: Sequence[Frame]) -> None:
+        self.list = list(frames)
+
+    def frames(self) -> Iterator[Frame]:
+        yield from self.list
+
+    def close(self) -> None:
+        pass
+
+
+def test_service_detects_through_the_calibrated_pinhole_not_the_frames() -> None:
+    """A unit whose lens is 4 % longer and centred 12 px off its type's, whose frames
+    report the type's pinhole (as a camera's factory figures can be wrong): detected
+    through what its frames say, both people are 12-13 cm off; through its calibrated
+    pinhole (given at half the resolution: scaled to the frames'), within 2 cm."""
+    nominal = Intrinsics.for_sensor("kinect2")
+    own = Intrinsics(512, 424, nominal.fx * 1.04, nominal.fy * 1.04, nominal.cx + 12,
+                     nominal.cy - 6)  # fmt: skip
+    spec = SensorSpec.from_config(SensorConfig(id="cam", type="kinect2", pose=POSE))
+    renderer = DepthRenderer(spec, ROOM, np.random.default_rng(1), intrinsics=own)
+    frames = [
+        dataclasses.replace(
+            renderer.render(_snapshot(), stamp=STAMP0 + i * PERIOD, seq=i).frame,
+            intrinsics=nominal,
+        )
+        for i in range(3)
+    ]
+    sensor = SensorConfig(id="cam", type="kinect2", source="recording", pose=POSE)
+    errors = {}
+    for name, calibrated in (("frames", None), ("calibrated", own.scaled(256, 212))):
+        with MemoryBus() as bus, Node("detector_cam", bus, stats_interval_s=0) as node:
+            got = _Collector(bus, "opt/default/detections/cam", decode_detection_batch)
+            service = DetectorService(
+                node, sensor, DetectorConfig(), _Frames(frames), intrinsics=calibrated
+            )
+            service.run()
+        batches = got.messages()
+        assert batches and all(len(b.detections) == 2 for b in batches), name
+        xy = np.array([[(d.x, d.y) for d in b.detections] for b in batches])
+        errors[name] = np.linalg.norm(xy[:, :, None] - PEOPLE_XY[None, None], axis=3).min(axis=2)
+    assert errors["frames"].min() > 0.10, errors
+    assert errors["calibrated"].max() < 0.02, errors
 
 
 # ------------------------------------------------------------------- node processes

@@ -3,10 +3,12 @@
 Step 4 of the checkerboard calibration of Munaro et al., OpenPTrack (§4), refined as in
 bundle adjustment (Triggs et al., "Bundle Adjustment — A Modern Synthesis"; as Kalibr
 and multical do): :class:`BundleProblem` holds the unknowns (6 per non-reference sensor,
-6 per placement), the residuals (projected minus observed corners) and the Jacobian's
-sparsity; :func:`solve` runs ``scipy.optimize.least_squares`` with a Huber loss and
-Jacobian-scaled variables; :func:`view_outliers` and :func:`corner_outliers` name the
-views and corners to reject before solving again (as Kalibr rejects corners).
+6 per placement and, when asked, 6 intrinsics per sensor: focal lengths, principal point
+and two radial distortion terms), the residuals (projected minus observed corners, and
+a weak prior on the intrinsics) and the Jacobian's sparsity; :func:`solve` runs
+``scipy.optimize.least_squares`` with a Huber loss and Jacobian-scaled variables;
+:func:`view_outliers` and :func:`corner_outliers` name the views and corners to reject
+before solving again (as Kalibr rejects corners).
 """
 
 from __future__ import annotations
@@ -21,7 +23,28 @@ from scipy.spatial.transform import Rotation
 from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.geometry import invert
 
-__all__ = ["BundleProblem", "corner_outliers", "huber_cost", "solve", "view_outliers"]
+__all__ = [
+    "INTRINSIC_PRIOR",
+    "BundleProblem",
+    "corner_outliers",
+    "huber_cost",
+    "solve",
+    "view_outliers",
+]
+
+INTRINSIC_PRIOR = (0.05, 0.05, 0.05, 0.05, 0.1, 0.1)
+"""Standard deviations of the weak prior on refined intrinsics, about the given ones:
+``fx``, ``fy`` as a fraction of the given focal length, ``cx``, ``cy`` as a fraction of
+the image's width and height, and the radial terms ``k1``, ``k2`` (absolute). A unit's
+focal length and centre are within a few percent of its type's nominal ones (the factory
+figures of depth sensors differ from unit to unit by about 1-2 %), and a depth camera's
+lens is close to distortion-free once its own driver has undistorted the image. The
+prior only decides directions the views leave undetermined (a sensor with few views,
+all facing it): a hundred corners outweigh it."""
+
+PRIOR_PX = 0.2
+"""Pixels a one-standard-deviation departure from the prior costs, as one corner's
+residual does: about the corner noise of a good detector."""
 
 
 def _to_params(rot: np.ndarray, position: np.ndarray) -> np.ndarray:
@@ -62,6 +85,12 @@ class BundleProblem:
         Number of placements.
     masks : sequence of ndarray, optional
         Per view, ``(n,)`` bool: the corners used (rejected corners' residuals are 0).
+    refine_intrinsics : bool
+        Also solve every sensor's ``fx, fy, cx, cy`` and radial distortion ``k1, k2`` (of
+        the given pixels: ``x' = x (1 + k1 r^2 + k2 r^4)`` on the normalised image
+        plane), 6 unknowns per sensor after the placements', started from the given
+        intrinsics and no distortion, under the weak prior :data:`INTRINSIC_PRIOR`
+        (6 more residuals per sensor, after the corners').
     """
 
     def __init__(
@@ -72,6 +101,7 @@ class BundleProblem:
         views: Sequence[tuple[int, int, np.ndarray]],
         placements: int,
         masks: Sequence[np.ndarray] | None = None,
+        refine_intrinsics: bool = False,
     ) -> None:
         self.object_points = np.asarray(object_points, dtype=float)
         self._board_centre = self.object_points.mean(axis=0)
@@ -89,7 +119,11 @@ class BundleProblem:
             else np.stack([np.asarray(m, dtype=bool) for m in masks])
         )
         k = np.array([[i.fx, i.fy, i.cx, i.cy] for i in intrinsics])
-        self._k = k[self.view_sensor]  # (views, 4)
+        self.refine_intrinsics = refine_intrinsics
+        self.image_sizes = [(i.width, i.height) for i in intrinsics]
+        self.given = np.hstack([k, np.zeros((len(k), 2))])  # (sensors, 6) with k1 = k2 = 0
+        size = np.array([[i.fx, i.fy, i.width, i.height, 1.0, 1.0] for i in intrinsics])
+        self._prior_sigma = size * np.array(INTRINSIC_PRIOR)
         # Parameter block of each sensor (-1 for the reference).
         order = [s for s in range(self.sensors) if s != reference]
         self.sensor_block = np.full(self.sensors, -1, dtype=int)
@@ -101,12 +135,32 @@ class BundleProblem:
         return 6 * (self.sensors - 1)
 
     @property
-    def n_params(self) -> int:
-        """Number of unknowns."""
+    def n_pose_params(self) -> int:
+        """Unknowns of the poses: the non-reference sensors', then the placements'."""
         return self.n_sensor_params + 6 * self.placements
 
-    def pack(self, camera_from_ref: np.ndarray, ref_from_board: np.ndarray) -> np.ndarray:
-        """Parameter vector of ``(sensors, 4, 4)`` and ``(placements, 4, 4)`` poses."""
+    @property
+    def n_params(self) -> int:
+        """Number of unknowns (the poses', then the intrinsics' if refined)."""
+        return self.n_pose_params + (6 * self.sensors if self.refine_intrinsics else 0)
+
+    def intrinsics(self, x: np.ndarray) -> np.ndarray:
+        """``(sensors, 6)``: each sensor's ``fx, fy, cx, cy, k1, k2`` at ``x``."""
+        if not self.refine_intrinsics:
+            return self.given
+        return x[self.n_pose_params :].reshape(self.sensors, 6)
+
+    def pack(
+        self,
+        camera_from_ref: np.ndarray,
+        ref_from_board: np.ndarray,
+        intrinsics: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Parameter vector of ``(sensors, 4, 4)`` and ``(placements, 4, 4)`` poses.
+
+        With refined intrinsics, ``intrinsics`` ``(sensors, 6)`` starts them (the given
+        ones and no distortion if omitted).
+        """
         blocks = []
         for s in range(self.sensors):
             if s != self.reference:
@@ -115,6 +169,8 @@ class BundleProblem:
         for pose in ref_from_board:
             centre = pose[:3, :3] @ self._board_centre + pose[:3, 3]
             blocks.append(_to_params(pose[:3, :3], centre))
+        if self.refine_intrinsics:
+            blocks.append((self.given if intrinsics is None else intrinsics).ravel())
         return np.concatenate([np.zeros(0), *blocks])
 
     def _rotations(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -125,7 +181,7 @@ class BundleProblem:
         others = self.sensor_block >= 0
         cam_rot[others] = rot[self.sensor_block[others]]
         cam_pos[others] = pos[self.sensor_block[others]]
-        board_rot, board_pos = _to_matrices(x[self.n_sensor_params :])
+        board_rot, board_pos = _to_matrices(x[self.n_sensor_params : self.n_pose_params])
         return cam_rot, cam_pos, board_rot, board_pos
 
     def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -146,18 +202,26 @@ class BundleProblem:
         s = self.view_sensor
         rel = ref_pts[self.view_placement] - cam_pos[s, None]
         cam_pts = np.einsum("vji,vnj->vni", cam_rot[s], rel)  # R^T (X - c)
-        k = self._k
+        k = self.intrinsics(x)[s]
         z = cam_pts[..., 2]
-        u = k[:, None, 0] * cam_pts[..., 0] / z + k[:, None, 2]
-        v = k[:, None, 1] * cam_pts[..., 1] / z + k[:, None, 3]
+        xn, yn = cam_pts[..., 0] / z, cam_pts[..., 1] / z
+        r2 = xn * xn + yn * yn
+        radial = 1.0 + k[:, None, 4] * r2 + k[:, None, 5] * r2 * r2
+        u = k[:, None, 0] * xn * radial + k[:, None, 2]
+        v = k[:, None, 1] * yn * radial + k[:, None, 3]
         return np.stack([u, v], axis=-1)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Projected minus observed pixels, flattened view by view, corner by corner.
 
-        Rejected corners (see ``masks``) give zeros.
+        Rejected corners (see ``masks``) give zeros. With refined intrinsics, the prior's
+        residuals follow, 6 per sensor.
         """
-        return ((self.project(x) - self.observed) * self.mask[..., None]).ravel()
+        corners = ((self.project(x) - self.observed) * self.mask[..., None]).ravel()
+        if not self.refine_intrinsics:
+            return corners
+        prior = PRIOR_PX * (self.intrinsics(x) - self.given) / self._prior_sigma
+        return np.concatenate([corners, prior.ravel()])
 
     def view_errors(self, x: np.ndarray) -> np.ndarray:
         """``(views, n)`` reprojection error of every corner (rejected ones too), pixels."""
@@ -171,8 +235,9 @@ class BundleProblem:
     def sparsity(self) -> sparse.csr_matrix:
         """Which residuals depend on which parameters (``least_squares``' ``jac_sparsity``).
 
-        A view's residuals depend on its sensor's 6 parameters (none for the reference)
-        and its placement's 6.
+        A view's residuals depend on its sensor's 6 pose parameters (none for the
+        reference), its placement's 6 and, when refined, its sensor's 6 intrinsics; each
+        prior residual on one intrinsic alone.
         """
         n_res = 2 * self.object_points.shape[0]
         rows, cols = [], []
@@ -181,11 +246,19 @@ class BundleProblem:
             blocks = [self.n_sensor_params + 6 * p + np.arange(6)]
             if self.sensor_block[s] >= 0:
                 blocks.append(6 * self.sensor_block[s] + np.arange(6))
+            if self.refine_intrinsics:
+                blocks.append(self.n_pose_params + 6 * s + np.arange(6))
             c = np.concatenate(blocks)
             rows.append(np.repeat(r, len(c)))
             cols.append(np.tile(c, len(r)))
+        n_rows = n_res * len(self.view_sensor)
+        if self.refine_intrinsics:
+            k = np.arange(6 * self.sensors)
+            rows.append(n_rows + k)
+            cols.append(self.n_pose_params + k)
+            n_rows += len(k)
         rows_a, cols_a = np.concatenate(rows), np.concatenate(cols)
-        shape = (n_res * len(self.view_sensor), self.n_params)
+        shape = (n_rows, self.n_params)
         return sparse.csr_matrix((np.ones(len(rows_a), dtype=np.int8), (rows_a, cols_a)), shape)
 
 

@@ -26,7 +26,10 @@ Steps of :func:`calibrate_extrinsics`, each in its own module:
    fixed, which fixes the gauge; the board's size fixes the scale) and per placement,
    minimising pixel reprojection error of every corner with a Huber loss, a sparse
    Jacobian (a view's residuals depend only on its sensor and its placement) and
-   Jacobian-scaled variables. Then outliers go, one at a time per placement and per
+   Jacobian-scaled variables; optionally every sensor's pinhole and radial distortion
+   too (``refine_intrinsics``: a unit's intrinsics differ from its type's nominal ones,
+   and a focal length 2 % off puts a board 2 % too far, which the poses absorb). Then
+   outliers go, one at a time per placement and per
    view, and the problem is solved again until none is left (as Kalibr rejects
    corners): views whose RMS error is far above the rest (a corner order flipped, a
    board that bent), then single corners far off the rest (a corner misplaced on a
@@ -35,24 +38,26 @@ Steps of :func:`calibrate_extrinsics`, each in its own module:
    world's, or as placed by ``world_from_floor_board``); else from a given world pose
    of the reference sensor.
 
-:class:`~openptrack_py.calibration.progress.CalibrationProgress` is what a capture loop
-(the CLI, a web page) polls while the board is moved; it is re-exported here for the
-command line.
+The result (:class:`~openptrack_py.calibration.board_result.ExtrinsicCalibration`, with
+its :class:`~openptrack_py.calibration.board_result.CalibrationReport`) is in its own
+module and re-exported here, as is
+:class:`~openptrack_py.calibration.progress.CalibrationProgress`, what a capture loop
+(the CLI, a web page) polls while the board is moved.
 
 Pixels are those of an ideal pinhole: undistort corners first
-(:func:`openptrack_py.calibration.intrinsics.undistort_corners`).
+(:func:`openptrack_py.calibration.intrinsics.undistort_corners`), or give them raw and
+refine the intrinsics with the poses.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from datetime import datetime, timezone
 
 import numpy as np
 
+from openptrack_py.calibration.board_result import CalibrationReport, ExtrinsicCalibration
 from openptrack_py.calibration.bundle import BundleProblem, corner_outliers, solve, view_outliers
-from openptrack_py.calibration.files import SensorCalibration
 from openptrack_py.calibration.observations import (
     BoardObservation,
     Placement,
@@ -62,10 +67,9 @@ from openptrack_py.calibration.observations import (
 )
 from openptrack_py.calibration.posegraph import board_guesses, chain_sensors, check_connected
 from openptrack_py.calibration.progress import CalibrationProgress
-from openptrack_py.config import Pose
 from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.errors import CalibrationError
-from openptrack_py.geometry import invert, pose_from_transform
+from openptrack_py.geometry import invert
 
 __all__ = [
     "FLOOR_BOARD_IN_WORLD",
@@ -78,109 +82,6 @@ __all__ = [
 FLOOR_BOARD_IN_WORLD = np.diag([1.0, -1.0, -1.0, 1.0])
 """Default ``world_from_floor_board``: the world origin at the floor board's first inner
 corner, world x along the board's x, z up (the board's z points into the floor)."""
-
-
-# ------------------------------------------------------------------------------ results
-
-
-@dataclass(frozen=True)
-class CalibrationReport:
-    """How the checkerboard calibration went.
-
-    Parameters
-    ----------
-    reference : str
-        The sensor whose pose anchored the solve.
-    rms_px : dict
-        Per sensor: reprojection RMS of its kept views, pixels.
-    views : dict
-        Per sensor: board views used.
-    pair_views : dict
-        Per pair of sensors (ids sorted): placements both saw.
-    placements : int
-        Board placements used.
-    iterations : int
-        Jacobian evaluations (iterations) of the final refinement.
-    initial_cost, final_cost : float
-        ``least_squares`` cost (half the sum of robust squared residuals, px²) before
-        and after the final refinement.
-    world_frame : str
-        ``"floor board"`` or ``"reference pose"``.
-    rejected_views : tuple of (str, float)
-        ``(sensor, stamp)`` of views rejected as outliers.
-    rejected_corners : int
-        Corners of the kept views rejected as outliers.
-    """
-
-    reference: str
-    rms_px: dict[str, float]
-    views: dict[str, int]
-    pair_views: dict[tuple[str, str], int]
-    placements: int
-    iterations: int
-    initial_cost: float
-    final_cost: float
-    world_frame: str
-    rejected_views: tuple[tuple[str, float], ...] = ()
-    rejected_corners: int = 0
-
-    def to_dict(self) -> dict:
-        """JSON-ready dict (pairs as ``"a|b"`` keys)."""
-        return {
-            "reference": self.reference,
-            "rms_px": dict(self.rms_px),
-            "views": dict(self.views),
-            "pair_views": {f"{a}|{b}": n for (a, b), n in self.pair_views.items()},
-            "placements": self.placements,
-            "iterations": self.iterations,
-            "initial_cost": self.initial_cost,
-            "final_cost": self.final_cost,
-            "world_frame": self.world_frame,
-            "rejected_views": [list(v) for v in self.rejected_views],
-            "rejected_corners": self.rejected_corners,
-        }
-
-
-@dataclass(frozen=True, eq=False)
-class ExtrinsicCalibration:
-    """Every sensor's pose in the world, and how well the views agree with it.
-
-    Parameters
-    ----------
-    world_from_optical : dict
-        Per sensor id: 4x4 transform from its optical frame to the world.
-    world_from_board : dict
-        Per placement stamp: 4x4 pose of the board in the world.
-    report : CalibrationReport
-        Residuals, counts and solver figures.
-    """
-
-    world_from_optical: dict[str, np.ndarray]
-    world_from_board: dict[float, np.ndarray]
-    report: CalibrationReport
-
-    def poses(self) -> dict[str, Pose]:
-        """Every sensor's pose as a network file writes it."""
-        return {s: pose_from_transform(m) for s, m in self.world_from_optical.items()}
-
-    def entries(self) -> dict[str, SensorCalibration]:
-        """Calibration-file entries: pose, method ``checkerboard``, residuals, date.
-
-        Residuals per sensor: ``reprojection_px`` (RMS) and ``views``.
-        """
-        now = datetime.now(timezone.utc)
-        return {
-            s: SensorCalibration.from_transform(
-                m,
-                method="checkerboard",
-                residuals={
-                    "reprojection_px": self.report.rms_px[s],
-                    "views": float(self.report.views[s]),
-                },
-                date=now,
-            )
-            for s, m in self.world_from_optical.items()
-        }
 
 
 # ------------------------------------------------------------------------------- checks
@@ -244,6 +145,7 @@ def calibrate_extrinsics(
     huber_px: float = 0.5,
     reject_px: float = 1.0,
     max_evaluations: int = 200,
+    refine_intrinsics: bool = False,
 ) -> ExtrinsicCalibration:
     """Every sensor's pose from checkerboard views (Munaro et al., OpenPTrack, §4).
 
@@ -279,6 +181,11 @@ def calibrate_extrinsics(
         median corner's, and the problem solved again.
     max_evaluations : int
         Cap on residual evaluations per solve.
+    refine_intrinsics : bool
+        Also solve every sensor's focal lengths, principal point and radial distortion
+        (``k1``, ``k2``) with the poses, from ``intrinsics`` and no distortion, under a
+        weak prior (:data:`~openptrack_py.calibration.bundle.INTRINSIC_PRIOR`); the
+        corners should then be raw, not undistorted.
 
     Returns
     -------
@@ -294,7 +201,9 @@ def calibrate_extrinsics(
     object_points = np.asarray(object_points, dtype=float)
     check_observations(observations, intrinsics, len(object_points))
     ref = _reference(reference, sensor_ids)
-    settings = _Settings(tolerance_s, min_shared_views, huber_px, reject_px, max_evaluations)
+    settings = _Settings(
+        tolerance_s, min_shared_views, huber_px, reject_px, max_evaluations, refine_intrinsics
+    )
     fit = _fit(list(observations), intrinsics, object_points, ref, settings)
     floor_pose = FLOOR_BOARD_IN_WORLD if world_from_floor_board is None else world_from_floor_board
     world_from_ref, frame = _world_from_ref(
@@ -319,12 +228,21 @@ def _calibration(
 ) -> ExtrinsicCalibration:
     """The refined poses in the world frame, with the report."""
     cams, boards = fit.problem.unpack(fit.x)
+    refined: dict[str, Intrinsics] = {}
+    distortion: dict[str, tuple[float, ...]] = {}
+    if fit.problem.refine_intrinsics:
+        for s, k in zip(sensor_ids, fit.problem.intrinsics(fit.x), strict=True):
+            width, height = fit.problem.image_sizes[sensor_ids.index(s)]
+            refined[s] = Intrinsics(width, height, *(float(v) for v in k[:4]))
+            distortion[s] = (float(k[4]), float(k[5]), 0.0, 0.0)
     return ExtrinsicCalibration(
         world_from_optical={s: world_from_ref @ invert(cams[i]) for i, s in enumerate(sensor_ids)},
         world_from_board={
             p.stamp: world_from_ref @ boards[i] for i, p in enumerate(fit.placements)
         },
         report=_report(fit, sensor_ids, reference, frame),
+        intrinsics=refined,
+        distortion=distortion,
     )
 
 
@@ -348,6 +266,7 @@ def _report(fit: _Fit, sensor_ids: Sequence[str], reference: str, frame: str) ->
         world_frame=frame,
         rejected_views=fit.rejected_views,
         rejected_corners=int((~problem.mask).sum()),
+        intrinsics_refined=problem.refine_intrinsics,
     )
 
 
@@ -363,6 +282,7 @@ class _Settings:
     huber_px: float
     reject_px: float
     max_evaluations: int
+    refine_intrinsics: bool = False
     max_rounds: int = 25
 
 
@@ -392,6 +312,7 @@ def _fit(
     masks = [np.ones(len(object_points), dtype=bool) for _ in observations]
     rejected: list[tuple[str, float]] = []
     cam_from_ref: dict[str, np.ndarray] | None = None  # after a rejection, the last solve's
+    k_start: np.ndarray | None = None  # ... and its intrinsics
     for _ in range(settings.max_rounds):
         placements = group_placements(observations, settings.tolerance_s)
         counts = pair_views(observations, placements)
@@ -401,11 +322,13 @@ def _fit(
                 observations, placements, sensor_ids, reference, settings.min_shared_views
             )
         problem, flat = _problem(
-            observations, placements, masks, intrinsics, object_points, reference
-        )
+            observations, placements, masks, intrinsics, object_points, reference,
+            settings.refine_intrinsics,
+        )  # fmt: skip
         x0 = problem.pack(
             np.stack([cam_from_ref[s] for s in sensor_ids]),
             board_guesses(observations, placements, cam_from_ref),
+            k_start,
         )
         x, iterations, cost0, cost = solve(
             problem, x0, settings.huber_px, settings.max_evaluations
@@ -419,6 +342,7 @@ def _fit(
         observations = [o for i, o in enumerate(observations) if i not in drop]
         masks = [m for i, m in enumerate(masks) if i not in drop]
         cam_from_ref = dict(zip(sensor_ids, problem.unpack(x)[0], strict=True))
+        k_start = problem.intrinsics(x) if settings.refine_intrinsics else None
         _check_left(observations, sensor_ids, settings.reject_px)
     return _Fit(problem, x, observations, placements, iterations, cost0, cost, tuple(rejected))
 
@@ -430,6 +354,7 @@ def _problem(
     intrinsics: Mapping[str, Intrinsics],
     object_points: np.ndarray,
     reference: str,
+    refine_intrinsics: bool = False,
 ) -> tuple[BundleProblem, list[int]]:
     """One round's bundle problem, and the index in ``observations`` of each of its views."""
     sensor_ids = list(intrinsics)
@@ -442,7 +367,7 @@ def _problem(
     ]
     problem = BundleProblem(
         object_points, [intrinsics[s] for s in sensor_ids], index[reference], views,
-        len(placements), [masks[i] for i in flat],
+        len(placements), [masks[i] for i in flat], refine_intrinsics,
     )  # fmt: skip
     return problem, flat
 

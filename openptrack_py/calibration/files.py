@@ -48,6 +48,7 @@ from pydantic import Field, model_validator
 from openptrack_py.config.base import Name, StrictModel
 from openptrack_py.config.loading import read_yaml, validate_config
 from openptrack_py.config.sensors import Pose
+from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.errors import CalibrationError, ConfigError
 from openptrack_py.geometry import pose_from_transform, world_from_optical
 
@@ -147,6 +148,11 @@ class SensorCalibration(StrictModel):
         out[:3, :3] = np.asarray(self.rotation, dtype=float)
         out[:3, 3] = np.asarray(self.translation, dtype=float)
         return out
+
+    def pinhole(self) -> Intrinsics | None:
+        """The calibrated pinhole the detector uses (``None`` if the entry has none)."""
+        k = self.intrinsics
+        return None if k is None else Intrinsics(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
 
     def as_pose(self) -> Pose:
         """The pose as position, heading, tilt and roll."""

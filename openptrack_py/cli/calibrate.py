@@ -55,7 +55,16 @@ def add_parser(subparsers: Subparsers) -> None:
     board = sub.add_parser("checkerboard", help="checkerboard calibration")
     _common(board)
     board.add_argument("--placements", type=int, default=30, help="board placements (sim)")
-    board.add_argument("--intrinsics", action="store_true", help="also estimate intrinsics")
+    own = board.add_mutually_exclusive_group()
+    own.add_argument(
+        "--intrinsics", action="store_true", help="estimate intrinsics first, per sensor (sim)"
+    )
+    own.add_argument(
+        "--refine-intrinsics",
+        action="store_true",
+        help="solve every sensor's focal lengths, centre and radial distortion with the "
+        "poses (for units whose intrinsics differ from their type's; written to the file)",
+    )
     board.add_argument(
         "--recordings",
         type=Path,
@@ -238,6 +247,7 @@ def _checkerboard_sim(network: NetworkConfig, args: argparse.Namespace) -> Any:
         placements=args.placements,
         seed=args.seed,
         estimate_intrinsics=args.intrinsics,
+        refine_intrinsics=args.refine_intrinsics,
         progress=progress,
     )
 

@@ -194,6 +194,7 @@ def solve(network: Any, args: argparse.Namespace, board: Any, collector: Any) ->
         reference=network.sensors[0].id,
         floor_stamp=floor_stamp,
         reference_world_from_camera=reference_pose,
+        refine_intrinsics=getattr(args, "refine_intrinsics", False),
     )
 
 
@@ -209,7 +210,7 @@ def _in_time_order(sources: dict[str, Any]) -> Iterator[tuple[float, str, Any]]:
 
 
 def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:
-    """Per sensor: views, reprojection RMS and the pose found."""
+    """Per sensor: views, reprojection RMS, the pose found (and refined focal lengths)."""
     from openptrack_py.cli.common import pose_cells
 
     report = calibration.report
@@ -223,5 +224,12 @@ def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:
                 **pose_cells(pose),
             }
         )
+        k = calibration.intrinsics.get(sid)
+        if k is not None:
+            out[-1].update(
+                fx=round(k.fx, 2), fy=round(k.fy, 2), k1=round(calibration.distortion[sid][0], 4)
+            )
     columns = ["sensor", "views", "rms_px", "x", "y", "z", "yaw_deg", "pitch_deg", "roll_deg"]
+    if calibration.intrinsics:
+        columns += ["fx", "fy", "k1"]
     return out, columns

@@ -4,11 +4,15 @@
 source and keeps only the newest frame: when detection falls behind, older frames are
 dropped (counted as ``frames_dropped``), never queued. The node's loop detects people in
 the newest frame and publishes a DetectionBatch on ``opt/<site>/detections/<sensor_id>``;
-per-stage timings go into the node's stats.
+per-stage timings go into the node's stats. A sensor whose calibration entry holds its
+own intrinsics (a checkerboard calibration with ``--refine-intrinsics``) is detected
+through that pinhole rather than the one its frames report (a camera's factory figures,
+or its type's).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -16,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from openptrack_py.config import DetectorConfig, NetworkConfig, SensorConfig
-from openptrack_py.detection.frame import Frame
+from openptrack_py.detection.frame import Frame, Intrinsics
 from openptrack_py.detection.pipeline import PeopleDetector
 from openptrack_py.detection.sources import Source, open_source
 from openptrack_py.errors import ConfigError, SourceError
@@ -84,6 +88,10 @@ class DetectorService:
         The sensor's calibrated pose (4x4 ``world_from_optical``, instead of
         ``sensor.pose``) and clock offset (subtracted from the frames' stamps); updates
         are applied with :meth:`apply_calibration`.
+    intrinsics : Intrinsics, optional
+        The sensor's calibrated pinhole, used instead of each frame's (scaled to the
+        frame's size). Its lens distortion, if calibrated, is not applied: a depth
+        camera's driver delivers undistorted images.
     """
 
     def __init__(
@@ -93,8 +101,10 @@ class DetectorService:
         config: DetectorConfig,
         source: Source,
         calibration: tuple[np.ndarray, float] | None = None,
+        intrinsics: Intrinsics | None = None,
     ) -> None:
         self.node = node
+        self.intrinsics = intrinsics
         self.sensor = sensor
         self.source = source
         self.clock_offset_s = 0.0 if calibration is None else calibration[1]
@@ -124,10 +134,16 @@ class DetectorService:
         self._grab_done = threading.Event()
         self.seq = 0
 
-    def apply_calibration(self, world_from_camera: np.ndarray, clock_offset_s: float) -> None:
-        """Use a new calibrated pose and clock offset from the next frame on."""
+    def apply_calibration(
+        self,
+        world_from_camera: np.ndarray,
+        clock_offset_s: float,
+        intrinsics: Intrinsics | None = None,
+    ) -> None:
+        """Use a new calibrated pose, clock offset and pinhole from the next frame on."""
         self.detector.set_pose(world_from_camera)
         self.clock_offset_s = clock_offset_s
+        self.intrinsics = intrinsics
         self.node.log.info("calibration applied", extra={"fields": {"sensor": self.sensor.id}})
 
     def _grab(self) -> None:
@@ -145,7 +161,7 @@ class DetectorService:
     def step(self, frame: Frame, on_result: Callable[[int], None] | None = None) -> None:
         """Detect in one frame and publish the batch."""
         counters = self.node.counters
-        result = self.detector.detect(frame)
+        result = self.detector.detect(self._calibrated(frame))
         for stage, seconds in result.timings.items():
             counters.add_timing(stage, seconds)
         batch = result.to_batch(self.sensor.id, self.seq, frame.stamp - self.clock_offset_s)
@@ -155,6 +171,15 @@ class DetectorService:
         counters.inc("detections", len(batch.detections))
         if result.status != "ok":
             counters.inc(f"status_{result.status.replace('-', '_')}")
+
+    def _calibrated(self, frame: Frame) -> Frame:
+        """The frame with the calibrated pinhole, if any (at the frame's image size)."""
+        own, k = frame.intrinsics, self.intrinsics
+        if k is None or own is None:
+            return frame
+        if (k.width, k.height) != (own.width, own.height):
+            k = k.scaled(own.width, own.height)
+        return dataclasses.replace(frame, intrinsics=k)
 
     def run(self) -> None:
         """Detect until the source ends or the node is stopped.

@@ -64,11 +64,15 @@ class SimSensor:
         ``kinect1``, ``kinect2``, ``realsense`` or ``sr4500``.
     pose : Pose
         True pose in the world.
+    intrinsics : Intrinsics, optional
+        The unit's true pinhole when it is not its type's nominal one (the renderer
+        draws with it; the calibration is still given the nominal one).
     """
 
     id: str
     type: str
     pose: Pose
+    intrinsics: Intrinsics | None = None
 
     @classmethod
     def from_config(cls, cfg: SensorConfig) -> SimSensor:
@@ -252,8 +256,8 @@ def sensor_rigs(
         rigs.append(
             SensorRig(
                 sensor,
-                DepthRenderer(spec, room, rng),
-                DepthRenderer(spec, room, rng, noise=False),
+                DepthRenderer(spec, room, rng, intrinsics=sensor.intrinsics),
+                DepthRenderer(spec, room, rng, noise=False, intrinsics=sensor.intrinsics),
                 rng,
                 float(rng.uniform(0.0, 1.0 / spec.rate_hz)),
             )
@@ -386,6 +390,7 @@ def simulate_checkerboard_calibration(
     reference: str | None = None,
     min_shared_views: int = 3,
     estimate_intrinsics: bool = False,
+    refine_intrinsics: bool = False,
     progress: CalibrationProgress | None = None,
 ) -> SimCalibration:
     """Run the whole checkerboard calibration on simulated sensors.
@@ -409,6 +414,9 @@ def simulate_checkerboard_calibration(
     estimate_intrinsics : bool
         Estimate each sensor's pinhole from its views (:func:`refit_intrinsics`) rather
         than use its type's nominal one (which the renderer uses).
+    refine_intrinsics : bool
+        Solve every sensor's pinhole and radial distortion with the poses, from its
+        type's nominal one (:func:`~openptrack_py.calibration.extrinsics.calibrate_extrinsics`).
     progress : CalibrationProgress, optional
         Updated after every placement, as a live capture loop would.
 
@@ -439,6 +447,7 @@ def simulate_checkerboard_calibration(
         floor_stamp=None if floor is None else floor.stamp,
         world_from_floor_board=None if floor is None else floor.world_from_board,
         min_shared_views=min_shared_views,
+        refine_intrinsics=refine_intrinsics,
     )
     truth = {s.id: world_from_optical(s.pose) for s in sensors}
     errors = {s.id: pose_error(calibration.world_from_optical[s.id], truth[s.id]) for s in sensors}

@@ -34,6 +34,7 @@ from openptrack_py.errors import CalibrationError, ConfigError
 from openptrack_py.eval.checkerboard import (
     SimSensor,
     pose_error,
+    render_observations,
     simulate_checkerboard_calibration,
 )
 from openptrack_py.geometry import invert, world_from_optical
@@ -388,7 +389,8 @@ def test_groups_without_enough_shared_views_are_named_with_the_minimum() -> None
     assert "c1–c2 1" in message
 
 
-def test_jacobian_sparsity_matches_finite_differences() -> None:
+@pytest.mark.parametrize("refine", [False, True], ids=["poses", "poses and intrinsics"])
+def test_jacobian_sparsity_matches_finite_differences(refine: bool) -> None:
     rng = np.random.default_rng(6)
     sensors = ring(3)
     boards = boards_among(sensors, 4, seed=6)
@@ -396,10 +398,15 @@ def test_jacobian_sparsity_matches_finite_differences() -> None:
     small = Checkerboard(rows=2, cols=3, square_m=0.3)
     views = [(0, 0), (1, 0), (1, 1), (2, 2), (0, 3), (2, 3)]
     problem = BundleProblem(
-        small.object_points(), intr, 1, [(s, p, np.zeros((6, 2))) for s, p in views], 4
-    )
+        small.object_points(), intr, 1, [(s, p, np.zeros((6, 2))) for s, p in views], 4,
+        refine_intrinsics=refine,
+    )  # fmt: skip
     cams = np.stack([invert(sensors[f"c{i}"]) for i in range(3)])
-    x = problem.pack(cams, np.stack(boards)) + rng.normal(0, 0.01, problem.n_params)
+    x = problem.pack(cams, np.stack(boards))
+    # poses moved a little; intrinsics by a pixel and the radial terms off zero
+    x += np.concatenate([rng.normal(0, 0.01, problem.n_pose_params), rng.normal(0, 1.0, 18)])[
+        : problem.n_params
+    ]
     base = problem.residuals(x)
     dense = np.empty((len(base), problem.n_params))
     for j in range(problem.n_params):
@@ -407,22 +414,98 @@ def test_jacobian_sparsity_matches_finite_differences() -> None:
         step[j] = 1e-6
         dense[:, j] = (problem.residuals(x + step) - problem.residuals(x - step)) / 2e-6
     pattern = problem.sparsity().toarray().astype(bool)
-    assert pattern.shape == dense.shape == (6 * 12, 6 * 2 + 6 * 4)
+    extra = 18 if refine else 0  # 6 intrinsics per sensor, and a prior residual for each
+    assert pattern.shape == dense.shape == (6 * 12 + extra, 6 * 2 + 6 * 4 + extra)
     nonzero = np.abs(dense) > 1e-6
     assert not (nonzero & ~pattern).any()  # nothing outside the pattern
-    # Views of other sensors depend on every parameter the pattern names; the reference
-    # camera is the identity, so its u does not move with a board's y (nor v with x),
-    # but every parameter block named still matters to some residual of the view.
+    np.testing.assert_array_equal(nonzero[6 * 12 :], pattern[6 * 12 :])  # the prior's
+    # Views of other sensors depend on every pose parameter the pattern names; the
+    # reference camera is the identity, so its u does not move with a board's y (nor v
+    # with x), and no u moves with fy or cy (nor v with fx or cx), but every parameter
+    # block named still matters to some residual of the view.
+    poses = slice(0, problem.n_pose_params)
     for view, (s, _) in enumerate(views):
         rows = slice(12 * view, 12 * (view + 1))
+        np.testing.assert_array_equal(nonzero[rows].any(axis=0), pattern[rows].any(axis=0))
         if s != 1:
-            np.testing.assert_array_equal(nonzero[rows], pattern[rows])
-        else:
-            np.testing.assert_array_equal(nonzero[rows].any(axis=0), pattern[rows].any(axis=0))
+            np.testing.assert_array_equal(nonzero[rows, poses], pattern[rows, poses])
     # ... and the packing round-trips the poses.
     cams_back, boards_back = problem.unpack(problem.pack(cams, np.stack(boards)))
     np.testing.assert_allclose(cams_back[[0, 2]], cams[[0, 2]], atol=1e-12)
     np.testing.assert_allclose(boards_back, np.stack(boards), atol=1e-12)
+
+
+def distorted_views(
+    sensors: dict[str, np.ndarray],
+    boards: list[np.ndarray],
+    units: dict[str, tuple[Intrinsics, np.ndarray]],
+    noise_px: float,
+    seed: int,
+) -> list[BoardObservation]:
+    """Raw corners as each unit's own lens sees them (OpenCV's projection: an oracle
+    independent of the bundle's), the pose guesses from the nominal pinhole."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    nominal = Intrinsics.for_sensor("kinect2")
+    obs = []
+    for p, world_from_board in enumerate(boards):
+        for sid, world_from_cam in sensors.items():
+            if not board_visible(SIM_BOARD, world_from_board, world_from_cam, nominal, "kinect2"):
+                continue
+            cam_from_board = invert(world_from_cam) @ world_from_board
+            k, dist = units[sid]
+            rvec, _ = cv2.Rodrigues(cam_from_board[:3, :3])
+            pts, _ = cv2.projectPoints(
+                SIM_BOARD.object_points(), rvec, cam_from_board[:3, 3], k.matrix, dist
+            )
+            corners = pts.reshape(-1, 2) + noise_px * rng.standard_normal((len(pts), 2))
+            guess = board_pose(corners, SIM_BOARD, nominal).camera_from_board
+            obs.append(BoardObservation(sid, 10.0 * p + 0.001 * len(obs), corners, guess))
+    return obs
+
+
+def test_units_whose_lenses_differ_from_the_nominal_are_calibrated_with_their_intrinsics() -> None:
+    """Each camera's focal length 1.5-3 % and its centre 3-8 px off its type's, and radial
+    distortion the nominal pinhole does not model: solved with the poses, they put every
+    sensor within 1.5 cm and 0.1 degrees, where the nominal pinhole leaves it 6-10 cm off."""
+    nominal = Intrinsics.for_sensor("kinect2")
+    sensors = ring(4)
+    units = {}
+    for i, (d, dc, k1) in enumerate([(0.03, 6, 0.08), (-0.02, -4, -0.05), (0.015, 3, 0.03),
+                                     (-0.03, 8, 0.1)]):  # fmt: skip
+        k = Intrinsics(512, 424, nominal.fx * (1 + d), nominal.fy * (1 + 0.9 * d),
+                       nominal.cx + dc, nominal.cy - dc)  # fmt: skip
+        units[f"c{i}"] = (k, np.array([k1, -k1, 0.0, 0.0, 0.0]))
+    boards = [*boards_among(sensors, 40, seed=1), floor_board((3.0, 2.5))]
+    obs = distorted_views(sensors, boards, units, noise_px=0.15, seed=5)
+    args = (obs, dict.fromkeys(sensors, nominal), SIM_BOARD.object_points())
+    where = {"floor_stamp": 10.0 * (len(boards) - 1), "world_from_floor_board": boards[-1]}
+    plain = calibrate_extrinsics(*args, **where)
+    assert not plain.intrinsics and not plain.report.intrinsics_refined
+    assert plain.entries()["c0"].intrinsics is None
+    refined = calibrate_extrinsics(*args, **where, refine_intrinsics=True)
+    assert refined.report.intrinsics_refined
+    for sid, truth in sensors.items():
+        before = pose_error(plain.world_from_optical[sid], truth)
+        after = pose_error(refined.world_from_optical[sid], truth)
+        assert before.translation_cm > 5.0, (sid, before)
+        assert after.translation_cm < 1.5 and after.rotation_deg < 0.1, (sid, after)
+        k, dist = units[sid]
+        got = refined.intrinsics[sid]
+        assert got.fx == pytest.approx(k.fx, rel=0.005) and got.fy == pytest.approx(
+            k.fy, rel=0.005
+        )
+        assert abs(got.cx - k.cx) < 1.0 and abs(got.cy - k.cy) < 1.0
+        assert refined.distortion[sid][0] == pytest.approx(dist[0], abs=0.03)
+        entry = refined.entries()[sid].intrinsics
+        assert (
+            entry is not None
+            and entry.fx == got.fx
+            and entry.distortion[0] == refined.distortion[sid][0]
+        )
+    assert max(refined.report.rms_px.values()) < 0.25  # the corners' noise, 0.15 px per axis
+    assert min(plain.report.rms_px.values()) > max(refined.report.rms_px.values())
 
 
 def test_progress_counts_pairs_and_image_coverage() -> None:
@@ -464,6 +547,47 @@ def test_three_kinect2_and_an_sr4500_calibrate_to_a_centimetre_and_a_fifth_of_a_
     assert snap.views == result.detections
     summary = json.loads(json.dumps(result.to_dict()))
     assert set(summary["sensors"]) == {s.id for s in SENSORS}
+
+
+@pytest.mark.slow
+def test_rendered_units_with_their_own_focal_lengths_calibrate_with_refined_intrinsics() -> None:
+    """The acceptance room, each camera's focal length 1.5-2.5 % and its centre a few
+    pixels off its type's (the renderer draws with the unit's own): with the nominal
+    pinhole every sensor is 5-8 cm off; with its intrinsics solved too, the Kinect v2
+    are within 1.2 cm and 0.2 degrees, and the SR4500 (176 x 144 pixels, whose centre
+    and turn trade off) within 1 cm and 0.4 degrees."""
+    units = []
+    for sensor, (d, du, dv) in zip(SENSORS, [(0.025, 5, -4), (-0.02, -6, 3), (0.015, 4, 5),
+                                            (-0.025, -3, -2)], strict=True):  # fmt: skip
+        k = Intrinsics.for_sensor(sensor.type)
+        scale = k.width / 512
+        own = Intrinsics(k.width, k.height, k.fx * (1 + d), k.fy * (1 + 0.8 * d),
+                         k.cx + du * scale, k.cy + dv * scale)  # fmt: skip
+        units.append(SimSensor(sensor.id, sensor.type, sensor.pose, own))
+    session = board_session(
+        SIM_BOARD, ROOM, [u.spec() for u in units], np.random.default_rng(SEED),
+        placements=PLACEMENTS,
+    )  # fmt: skip
+    obs = render_observations(units, ROOM, session, seed=SEED + 1)
+    nominal = {u.id: Intrinsics.for_sensor(u.type) for u in units}
+    where = {
+        "floor_stamp": session.floor.stamp,
+        "world_from_floor_board": session.floor.world_from_board,
+    }
+    plain = calibrate_extrinsics(obs, nominal, SIM_BOARD.object_points(), **where)
+    refined = calibrate_extrinsics(
+        obs, nominal, SIM_BOARD.object_points(), **where, refine_intrinsics=True
+    )
+    for unit in units:
+        truth = world_from_optical(unit.pose)
+        before = pose_error(plain.world_from_optical[unit.id], truth)
+        after = pose_error(refined.world_from_optical[unit.id], truth)
+        assert before.translation_cm > 4.0, (unit.id, before)
+        turn = 0.4 if unit.type == "sr4500" else 0.2
+        assert after.translation_cm <= 1.2 and after.rotation_deg <= turn, (unit.id, after)
+        got = refined.intrinsics[unit.id]
+        assert got.fx == pytest.approx(unit.intrinsics.fx, rel=0.005), unit.id
+        assert got.fy == pytest.approx(unit.intrinsics.fy, rel=0.005), unit.id
 
 
 PLACEMENTS = 24

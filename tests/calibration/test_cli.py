@@ -14,6 +14,7 @@ import yaml
 
 from openptrack_py.calibration.files import load_calibration
 from openptrack_py.config import load_network
+from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.runtime.args import resolve_config_path
 from tests.conftest import python_env
@@ -268,6 +269,32 @@ def test_checkerboard_from_each_sensors_recording_of_the_session(
     done = _cli("checkerboard", "demo", "--recordings", str(board_session), "--output", str(out),
                 "--format", "json")  # fmt: skip
     _assert_board_calibration(done, out)
+
+
+@pytest.mark.slow
+def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
+    board_session: Path, tmp_path: Path
+) -> None:
+    """``--refine-intrinsics`` solves each camera's lens with the poses and writes it to
+    the calibration file (these simulated units have their type's nominal lens)."""
+    out = tmp_path / "calibration.yaml"
+    done = _cli("checkerboard", "demo", "--recordings", str(board_session), "--output", str(out),
+                "--format", "json", "--refine-intrinsics")  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    nominal = Intrinsics.for_sensor("kinect2")
+    rows = {r["sensor"]: r for r in json.loads(done.stdout)}
+    assert all(abs(r["fx"] / nominal.fx - 1) < 0.01 for r in rows.values()), rows
+    entries = load_calibration(out).sensors
+    anchor, true_anchor = entries["k2_a"].world_from_optical(), _true_pose("k2_a")
+    for sensor_id, entry in entries.items():
+        k = entry.intrinsics
+        assert k is not None and (k.width, k.height) == (512, 424), sensor_id
+        assert abs(k.fx / nominal.fx - 1) < 0.01 and len(k.distortion) == 4, sensor_id
+        rel = np.linalg.inv(anchor) @ entry.world_from_optical()
+        true_rel = np.linalg.inv(true_anchor) @ _true_pose(sensor_id)
+        assert np.linalg.norm(rel[:3, 3] - true_rel[:3, 3]) < 0.02, sensor_id
+    both = _cli("checkerboard", "demo", "--sim", "--intrinsics", "--refine-intrinsics")
+    assert both.returncode == 2 and "not allowed with argument" in both.stderr
 
 
 def test_checkerboard_recordings_name_a_missing_sensor(tmp_path: Path) -> None:

@@ -1,0 +1,145 @@
+"""What the checkerboard calibration returns: every sensor's pose, and its report.
+
+The results of :func:`~openptrack_py.calibration.extrinsics.calibrate_extrinsics`
+(Munaro et al., OpenPTrack, §4): :class:`ExtrinsicCalibration` holds every sensor's
+refined pose in the world (and its refined pinhole and distortion when they were solved
+too) and writes the calibration file's entries; :class:`CalibrationReport` says how the
+solve went (residuals per sensor, counts, solver figures, rejected views).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+
+import numpy as np
+
+from openptrack_py.calibration.files import CameraIntrinsics, SensorCalibration
+from openptrack_py.config import Pose
+from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.geometry import pose_from_transform
+
+__all__ = ["CalibrationReport", "ExtrinsicCalibration"]
+
+
+@dataclass(frozen=True)
+class CalibrationReport:
+    """How the checkerboard calibration went.
+
+    Parameters
+    ----------
+    reference : str
+        The sensor whose pose anchored the solve.
+    rms_px : dict
+        Per sensor: reprojection RMS of its kept views, pixels.
+    views : dict
+        Per sensor: board views used.
+    pair_views : dict
+        Per pair of sensors (ids sorted): placements both saw.
+    placements : int
+        Board placements used.
+    iterations : int
+        Jacobian evaluations (iterations) of the final refinement.
+    initial_cost, final_cost : float
+        ``least_squares`` cost (half the sum of robust squared residuals, px²) before
+        and after the final refinement.
+    world_frame : str
+        ``"floor board"`` or ``"reference pose"``.
+    rejected_views : tuple of (str, float)
+        ``(sensor, stamp)`` of views rejected as outliers.
+    rejected_corners : int
+        Corners of the kept views rejected as outliers.
+    intrinsics_refined : bool
+        Whether every sensor's intrinsics were solved with the poses.
+    """
+
+    reference: str
+    rms_px: dict[str, float]
+    views: dict[str, int]
+    pair_views: dict[tuple[str, str], int]
+    placements: int
+    iterations: int
+    initial_cost: float
+    final_cost: float
+    world_frame: str
+    rejected_views: tuple[tuple[str, float], ...] = ()
+    rejected_corners: int = 0
+    intrinsics_refined: bool = False
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (pairs as ``"a|b"`` keys)."""
+        return {
+            "reference": self.reference,
+            "rms_px": dict(self.rms_px),
+            "views": dict(self.views),
+            "pair_views": {f"{a}|{b}": n for (a, b), n in self.pair_views.items()},
+            "placements": self.placements,
+            "iterations": self.iterations,
+            "initial_cost": self.initial_cost,
+            "final_cost": self.final_cost,
+            "world_frame": self.world_frame,
+            "rejected_views": [list(v) for v in self.rejected_views],
+            "rejected_corners": self.rejected_corners,
+            "intrinsics_refined": self.intrinsics_refined,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class ExtrinsicCalibration:
+    """Every sensor's pose in the world, and how well the views agree with it.
+
+    Parameters
+    ----------
+    world_from_optical : dict
+        Per sensor id: 4x4 transform from its optical frame to the world.
+    world_from_board : dict
+        Per placement stamp: 4x4 pose of the board in the world.
+    report : CalibrationReport
+        Residuals, counts and solver figures.
+    intrinsics : dict
+        Per sensor id, its refined pinhole (empty unless ``refine_intrinsics``).
+    distortion : dict
+        Per sensor id, its refined OpenCV distortion coefficients ``(k1, k2, 0, 0)`` (radial
+        only) of the pixels the views gave (empty unless ``refine_intrinsics``).
+    """
+
+    world_from_optical: dict[str, np.ndarray]
+    world_from_board: dict[float, np.ndarray]
+    report: CalibrationReport
+    intrinsics: dict[str, Intrinsics] = field(default_factory=dict)
+    distortion: dict[str, tuple[float, ...]] = field(default_factory=dict)
+
+    def poses(self) -> dict[str, Pose]:
+        """Every sensor's pose as a network file writes it."""
+        return {s: pose_from_transform(m) for s, m in self.world_from_optical.items()}
+
+    def entries(self) -> dict[str, SensorCalibration]:
+        """Calibration-file entries: pose, method ``checkerboard``, residuals, date.
+
+        Residuals per sensor: ``reprojection_px`` (RMS) and ``views``; the refined
+        intrinsics and distortion when they were solved.
+        """
+        now = datetime.now(timezone.utc)
+        return {
+            s: SensorCalibration.from_transform(
+                m,
+                method="checkerboard",
+                residuals={
+                    "reprojection_px": self.report.rms_px[s],
+                    "views": float(self.report.views[s]),
+                },
+                intrinsics=self._camera(s),
+                date=now,
+            )
+            for s, m in self.world_from_optical.items()
+        }
+
+    def _camera(self, sensor_id: str) -> CameraIntrinsics | None:
+        """The file's intrinsics of a sensor, if they were refined."""
+        k = self.intrinsics.get(sensor_id)
+        if k is None:
+            return None
+        return CameraIntrinsics(
+            width=k.width, height=k.height, fx=k.fx, fy=k.fy, cx=k.cx, cy=k.cy,
+            distortion=self.distortion.get(sensor_id, ()),
+        )  # fmt: skip
