@@ -313,7 +313,8 @@ def test_service_detects_through_the_calibrated_pinhole_not_the_frames() -> None
     """A unit whose lens is 4 % longer and centred 12 px off its type's, whose frames
     report the type's pinhole (as a camera's factory figures can be wrong): detected
     through what its frames say, both people are 12-13 cm off; through its calibrated
-    pinhole (given at half the resolution: scaled to the frames'), within 2 cm."""
+    pinhole (given at half the resolution: scaled to the frames'), within 2 cm; one of
+    another image shape is not used."""
     nominal = Intrinsics.for_sensor("kinect2")
     own = Intrinsics(512, 424, nominal.fx * 1.04, nominal.fy * 1.04, nominal.cx + 12,
                      nominal.cy - 6)  # fmt: skip
@@ -328,7 +329,9 @@ def test_service_detects_through_the_calibrated_pinhole_not_the_frames() -> None
     ]
     sensor = SensorConfig(id="cam", type="kinect2", source="recording", pose=POSE)
     errors = {}
-    for name, calibrated in (("frames", None), ("calibrated", own.scaled(256, 212))):
+    other_shape = Intrinsics(640, 480, 500.0, 500.0, 320.0, 240.0)  # another image mode
+    cases = (("frames", None), ("calibrated", own.scaled(256, 212)), ("other", other_shape))
+    for name, calibrated in cases:
         with MemoryBus() as bus, Node("detector_cam", bus, stats_interval_s=0) as node:
             got = _Collector(bus, "opt/default/detections/cam", decode_detection_batch)
             service = DetectorService(
@@ -341,6 +344,8 @@ def test_service_detects_through_the_calibrated_pinhole_not_the_frames() -> None
         errors[name] = np.linalg.norm(xy[:, :, None] - PEOPLE_XY[None, None], axis=3).min(axis=2)
     assert errors["frames"].min() > 0.10, errors
     assert errors["calibrated"].max() < 0.02, errors
+    # intrinsics of another image shape are not stretched onto these frames
+    np.testing.assert_array_equal(errors["other"], errors["frames"])
 
 
 # ------------------------------------------------------------------- node processes

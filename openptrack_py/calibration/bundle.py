@@ -13,6 +13,7 @@ before solving again (as Kalibr rejects corners).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -63,13 +64,15 @@ def _to_matrices(params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class BundleProblem:
     """Joint refinement of sensor and board poses by corner reprojection error.
 
-    Unknowns, 6 per non-reference sensor then 6 per placement: a sensor's orientation in
-    the reference frame (rotation vector of ``ref_from_camera``) and its optical centre
-    there; a board's orientation (of ``ref_from_board``) and its centre. Positions of
-    centres rather than the translations of the transforms keep rotations and
-    translations nearly independent (a camera turning about its own centre moves no
-    other unknown), which keeps the problem well conditioned.
-    Residuals: per view, per corner, the projected minus the observed pixel (u, v).
+    Unknowns, 6 per non-reference sensor then 6 per placement (then, with
+    ``refine_intrinsics``, 6 per sensor): a sensor's orientation in the reference frame
+    (rotation vector of ``ref_from_camera``) and its optical centre there; a board's
+    orientation (of ``ref_from_board``) and its centre. Positions of centres rather than
+    the translations of the transforms keep rotations and translations nearly
+    independent (a camera turning about its own centre moves no other unknown), which
+    keeps the problem well conditioned.
+    Residuals: per view, per corner, the projected minus the observed pixel (u, v); with
+    ``refine_intrinsics``, the prior's after them.
 
     Parameters
     ----------
@@ -204,6 +207,10 @@ class BundleProblem:
         cam_pts = np.einsum("vji,vnj->vni", cam_rot[s], rel)  # R^T (X - c)
         k = self.intrinsics(x)[s]
         z = cam_pts[..., 2]
+        if not self.refine_intrinsics:  # the pinhole alone, as before intrinsics were solved
+            u = k[:, None, 0] * cam_pts[..., 0] / z + k[:, None, 2]
+            v = k[:, None, 1] * cam_pts[..., 1] / z + k[:, None, 3]
+            return np.stack([u, v], axis=-1)
         xn, yn = cam_pts[..., 0] / z, cam_pts[..., 1] / z
         r2 = xn * xn + yn * yn
         radial = 1.0 + k[:, None, 4] * r2 + k[:, None, 5] * r2 * r2
@@ -222,6 +229,52 @@ class BundleProblem:
             return corners
         prior = PRIOR_PX * (self.intrinsics(x) - self.given) / self._prior_sigma
         return np.concatenate([corners, prior.ravel()])
+
+    def intrinsics_sd(self, x: np.ndarray) -> np.ndarray:
+        """``(sensors, 6)``: standard deviations of the refined intrinsics at ``x``.
+
+        From the Gauss-Newton covariance ``s^2 (J'J)^-1`` (``J`` by forward differences,
+        the prior's rows included; ``s`` the corners' residual scatter per coordinate),
+        so an intrinsic the views barely determine shows a large one. Zeros when the
+        intrinsics are not refined.
+        """
+        if not self.refine_intrinsics:
+            return np.zeros((self.sensors, 6))
+        base = self.residuals(x)
+        jac = np.empty((len(base), self.n_params))
+        for j in range(self.n_params):
+            step = 1e-6 * max(1.0, abs(float(x[j])))
+            moved = x.copy()
+            moved[j] += step
+            jac[:, j] = (self.residuals(moved) - base) / step
+        used = 2 * int(self.mask.sum())
+        corners = base[: self.observed.size]
+        scatter = float(corners @ corners) / max(used - self.n_params, 1)
+        cov = scatter * np.linalg.pinv(jac.T @ jac)
+        sd = np.sqrt(np.maximum(np.diag(cov)[self.n_pose_params :], 0.0))
+        return sd.reshape(self.sensors, 6)
+
+    def distortion_px(self, x: np.ndarray) -> np.ndarray:
+        """``(sensors,)``: how far the radial distortion moves the farthest corner seen.
+
+        Pixels, at the largest radius from the image centre among each sensor's used
+        corners (beyond them the fitted terms say nothing); zeros when not refined.
+        """
+        out = np.zeros(self.sensors)
+        if not self.refine_intrinsics:
+            return out
+        k = self.intrinsics(x)
+        for s in range(self.sensors):
+            mine = self.view_sensor == s
+            if not mine.any():
+                continue
+            pix = self.observed[mine][self.mask[mine]]
+            xn = (pix[:, 0] - k[s, 2]) / k[s, 0]
+            yn = (pix[:, 1] - k[s, 3]) / k[s, 1]
+            r2 = float((xn * xn + yn * yn).max())
+            focal = 0.5 * (k[s, 0] + k[s, 1])
+            out[s] = abs(k[s, 4] * r2 + k[s, 5] * r2 * r2) * math.sqrt(r2) * focal
+        return out
 
     def view_errors(self, x: np.ndarray) -> np.ndarray:
         """``(views, n)`` reprojection error of every corner (rejected ones too), pixels."""

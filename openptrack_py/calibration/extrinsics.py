@@ -267,6 +267,19 @@ def _report(fit: _Fit, sensor_ids: Sequence[str], reference: str, frame: str) ->
         rejected_views=fit.rejected_views,
         rejected_corners=int((~problem.mask).sum()),
         intrinsics_refined=problem.refine_intrinsics,
+        intrinsics_sd=(
+            {
+                s: tuple(float(v) for v in sd)
+                for s, sd in zip(sensor_ids, problem.intrinsics_sd(fit.x), strict=True)
+            }
+            if problem.refine_intrinsics
+            else {}
+        ),
+        distortion_px=(
+            dict(zip(sensor_ids, problem.distortion_px(fit.x).tolist(), strict=True))
+            if problem.refine_intrinsics
+            else {}
+        ),
     )
 
 

@@ -196,8 +196,20 @@ class CalibrationFile(StrictModel):
     sensors: dict[Name, SensorCalibration] = Field(default_factory=dict)
 
     def replaced(self, entries: Mapping[str, SensorCalibration]) -> CalibrationFile:
-        """A copy with ``entries`` added or replacing the sensors' old ones."""
-        return self.model_copy(update={"sensors": {**self.sensors, **entries}})
+        """A copy with ``entries`` added or replacing the sensors' old ones.
+
+        A walk's entry (method ``walk`` or ``refinement``) measures the pose and clock
+        only: it keeps the old entry's intrinsics, through which its detections were
+        made. Any other entry replaces the old one whole.
+        """
+        merged = dict(self.sensors)
+        for sensor_id, entry in entries.items():
+            old = self.sensors.get(sensor_id)
+            keep = entry.method in ("walk", "refinement") and entry.intrinsics is None
+            if keep and old is not None and old.intrinsics is not None:
+                entry = entry.model_copy(update={"intrinsics": old.intrinsics})
+            merged[sensor_id] = entry
+        return self.model_copy(update={"sensors": merged})
 
 
 def check_rotation(rotation: np.ndarray) -> None:

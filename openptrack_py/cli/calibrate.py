@@ -202,6 +202,8 @@ def run_checkerboard(args: argparse.Namespace) -> int:
         written = _write(args, network, calibration.entries())
     except (CalibrationError, ConfigError, ValueError) as exc:
         return _fail(exc)
+    for line in calibration.intrinsics_warnings():
+        print(f"openptrack calibrate: {line}", file=sys.stderr)
     if args.recordings is not None or args.live is not None:
         from openptrack_py.cli.calibrate_board import rows
 

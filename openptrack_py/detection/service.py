@@ -90,8 +90,8 @@ class DetectorService:
         are applied with :meth:`apply_calibration`.
     intrinsics : Intrinsics, optional
         The sensor's calibrated pinhole, used instead of each frame's (scaled to the
-        frame's size). Its lens distortion, if calibrated, is not applied: a depth
-        camera's driver delivers undistorted images.
+        frame's size when its shape is the same). A calibrated lens distortion is not
+        applied: undistort the depth images in the camera's driver.
     """
 
     def __init__(
@@ -105,6 +105,7 @@ class DetectorService:
     ) -> None:
         self.node = node
         self.intrinsics = intrinsics
+        self._shape_warned = False
         self.sensor = sensor
         self.source = source
         self.clock_offset_s = 0.0 if calibration is None else calibration[1]
@@ -173,11 +174,24 @@ class DetectorService:
             counters.inc(f"status_{result.status.replace('-', '_')}")
 
     def _calibrated(self, frame: Frame) -> Frame:
-        """The frame with the calibrated pinhole, if any (at the frame's image size)."""
+        """The frame with the calibrated pinhole, if any (at the frame's image size).
+
+        A frame of another shape (another image mode, cropped rather than scaled) keeps
+        its own pinhole, with one warning.
+        """
         own, k = frame.intrinsics, self.intrinsics
         if k is None or own is None:
             return frame
         if (k.width, k.height) != (own.width, own.height):
+            if abs(k.width * own.height / (k.height * own.width) - 1.0) > 0.01:
+                if not self._shape_warned:
+                    self._shape_warned = True
+                    self.node.log.warning(
+                        "calibrated intrinsics are for %dx%d images, frames are %dx%d: "
+                        "using the frames' own",
+                        k.width, k.height, own.width, own.height,
+                    )  # fmt: skip
+                return frame
             k = k.scaled(own.width, own.height)
         return dataclasses.replace(frame, intrinsics=k)
 

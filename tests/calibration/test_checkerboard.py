@@ -506,6 +506,33 @@ def test_units_whose_lenses_differ_from_the_nominal_are_calibrated_with_their_in
         )
     assert max(refined.report.rms_px.values()) < 0.25  # the corners' noise, 0.15 px per axis
     assert min(plain.report.rms_px.values()) > max(refined.report.rms_px.values())
+    # what the solve says of its own intrinsics: focal lengths known to a few tenths of
+    # a percent here, and the distortion it found is not what the detector applies
+    sd = refined.report.intrinsics_sd
+    assert all(0 < v[0] < 0.005 * nominal.fx for v in sd.values()), sd
+    warnings = refined.intrinsics_warnings()
+    assert not any("poorly determined" in w for w in warnings), warnings
+    assert any(w.startswith("c3: radial distortion moves") for w in warnings), warnings
+
+
+def test_a_thin_session_says_its_refined_focal_lengths_are_poorly_determined() -> None:
+    """Twelve placements about one point, three sensors, their lenses the nominal ones:
+    solving the intrinsics too leaves two sensors 9-12 cm off (0.2-0.6 cm without), and
+    the report says so: their focal lengths are known to about 1 % only."""
+    sensors = ring(3)
+    obs = synthetic_views(sensors, boards_among(sensors, 12, seed=7), noise_px=0.15, seed=8)
+    args = (obs, dict.fromkeys(sensors, Intrinsics.for_sensor("kinect2")))
+    where = {"reference": "c1", "reference_world_from_camera": sensors["c1"]}
+    thin = calibrate_extrinsics(*args, SIM_BOARD.object_points(), **where, refine_intrinsics=True)
+    worst = max(
+        pose_error(thin.world_from_optical[s], t).translation_cm for s, t in sensors.items()
+    )
+    assert worst > 5.0
+    warnings = thin.intrinsics_warnings()
+    assert any(w.startswith("c0: focal length poorly determined") for w in warnings), warnings
+    assert not any("radial distortion" in w for w in warnings), warnings  # none to speak of
+    plain = calibrate_extrinsics(*args, SIM_BOARD.object_points(), **where)
+    assert plain.intrinsics_warnings() == []
 
 
 def test_progress_counts_pairs_and_image_coverage() -> None:

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from openptrack_py.calibration.files import (
     CalibrationFile,
+    CameraIntrinsics,
     SensorCalibration,
     believed_poses,
     entry_payload,
@@ -72,6 +73,26 @@ def test_a_saved_file_loads_back_to_the_same_poses(tmp_path: Path) -> None:
     assert loaded.sensors["k2_a"].as_pose().yaw_deg == pytest.approx(30.0, abs=1e-5)
     assert path.read_text().startswith("# openptrack_py calibration")
     assert [p.name for p in path.parent.iterdir()] == ["calibration.yaml"]  # no temporary left
+
+
+def test_a_walk_keeps_the_intrinsics_a_checkerboard_solved_and_a_checkerboard_replaces_them() -> (
+    None
+):
+    lens = CameraIntrinsics(width=512, height=424, fx=370.0, fy=375.0, cx=260.0, cy=208.0,
+                            distortion=(0.05, -0.01, 0.0, 0.0))  # fmt: skip
+    board = SensorCalibration(pose=TRUE, method="checkerboard", intrinsics=lens)
+    current = CalibrationFile(sensors={"k2_a": board, "k2_b": board})
+    walked = SensorCalibration(pose=TRUE, method="refinement", clock_offset_s=0.01)
+    after = current.replaced({"k2_a": walked})
+    assert after.sensors["k2_a"].intrinsics == lens  # its detections were made through it
+    assert (
+        after.sensors["k2_a"].clock_offset_s == 0.01
+        and after.sensors["k2_a"].method == "refinement"
+    )
+    assert after.sensors["k2_a"].pinhole().fx == 370.0
+    plain = SensorCalibration(pose=TRUE, method="checkerboard")
+    assert current.replaced({"k2_b": plain}).sensors["k2_b"].intrinsics is None
+    assert current.sensors["k2_a"].method == "checkerboard"  # the original is unchanged
 
 
 def test_a_hand_written_pose_is_the_same_as_its_matrix() -> None:
