@@ -43,12 +43,12 @@ def main_loop(cfg: NetworkConfig, node: Node, args: argparse.Namespace) -> None:
     except SourceError as exc:
         raise ConfigError(f"sensors.{sensor.id}: {exc}") from None
     calibration = None if entry is None else (entry.world_from_optical(), entry.clock_offset_s)
-    intrinsics = None if entry is None else entry.pinhole()
+    intrinsics = None if entry is None else entry.camera()
     service = DetectorService(node, sensor, cfg.detector, source, calibration, intrinsics)
 
     def apply(update: SensorCalibration) -> None:
         service.apply_calibration(
-            update.world_from_optical(), update.clock_offset_s, update.pinhole()
+            update.world_from_optical(), update.clock_offset_s, update.camera()
         )
 
     follower = CalibrationFollower(node, sensor.id, apply)

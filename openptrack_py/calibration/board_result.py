@@ -113,7 +113,8 @@ class ExtrinsicCalibration:
     report : CalibrationReport
         Residuals, counts and solver figures.
     intrinsics : dict
-        Per sensor id, its refined pinhole (empty unless ``refine_intrinsics``).
+        Per sensor id, its refined camera model, pinhole and radial distortion (empty
+        unless ``refine_intrinsics``).
     distortion : dict
         Per sensor id, its refined OpenCV distortion coefficients ``(k1, k2, 0, 0)`` (radial
         only) of the pixels the views gave (empty unless ``refine_intrinsics``).
@@ -154,9 +155,7 @@ class ExtrinsicCalibration:
         """What a user should know of the refined intrinsics, one line per sensor.
 
         A focal length whose standard deviation exceeds ``focal_sd`` (a fraction) is
-        poorly determined by the views; a radial distortion that moves the farthest
-        corners seen by more than a pixel is in the file, but the detector uses the
-        pinhole only.
+        poorly determined by the views, and the poses with it.
         """
         out = []
         for sid, k in self.intrinsics.items():
@@ -165,14 +164,6 @@ class ExtrinsicCalibration:
                 out.append(
                     f"{sid}: focal length poorly determined (±{100 * sd[0] / k.fx:.1f} %): "
                     "add placements nearer and farther, and towards the image's edges"
-                )
-            shift = self.report.distortion_px.get(sid, 0.0)
-            if shift > 1.0:
-                out.append(
-                    f"{sid}: radial distortion moves the farthest corners seen {shift:.1f} px; "
-                    "it is "
-                    "written to the file, but the detector uses the pinhole only (undistort "
-                    "the depth images in the camera's driver)"
                 )
         return out
 

@@ -233,7 +233,7 @@ def _calibration(
     if fit.problem.refine_intrinsics:
         for s, k in zip(sensor_ids, fit.problem.intrinsics(fit.x), strict=True):
             width, height = fit.problem.image_sizes[sensor_ids.index(s)]
-            refined[s] = Intrinsics(width, height, *(float(v) for v in k[:4]))
+            refined[s] = Intrinsics(width, height, *(float(v) for v in k))
             distortion[s] = (float(k[4]), float(k[5]), 0.0, 0.0)
     return ExtrinsicCalibration(
         world_from_optical={s: world_from_ref @ invert(cams[i]) for i, s in enumerate(sensor_ids)},

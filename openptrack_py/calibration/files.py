@@ -149,10 +149,16 @@ class SensorCalibration(StrictModel):
         out[:3, 3] = np.asarray(self.translation, dtype=float)
         return out
 
-    def pinhole(self) -> Intrinsics | None:
-        """The calibrated pinhole the detector uses (``None`` if the entry has none)."""
+    def camera(self) -> Intrinsics | None:
+        """The calibrated camera model the detector uses (``None`` if the entry has none).
+
+        Its pinhole and radial distortion ``k1``, ``k2``; tangential terms are not used.
+        """
         k = self.intrinsics
-        return None if k is None else Intrinsics(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
+        if k is None:
+            return None
+        radial = (*k.distortion, 0.0, 0.0)[:2]
+        return Intrinsics(k.width, k.height, k.fx, k.fy, k.cx, k.cy, *radial)
 
     def as_pose(self) -> Pose:
         """The pose as position, heading, tilt and roll."""

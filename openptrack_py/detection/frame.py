@@ -30,6 +30,10 @@ class Intrinsics:
         Focal lengths, pixels.
     cx, cy : float
         Principal point, pixels.
+    k1, k2 : float
+        Radial lens distortion of the image (OpenCV's: a point at ``(x, y)`` on the
+        normalised image plane is imaged at ``(x, y) (1 + k1 r^2 + k2 r^4)``); 0 for an
+        image already undistorted, as most depth cameras' drivers deliver it.
     """
 
     width: int
@@ -38,6 +42,8 @@ class Intrinsics:
     fy: float
     cx: float
     cy: float
+    k1: float = 0.0
+    k2: float = 0.0
 
     def __post_init__(self) -> None:
         if self.width < 1 or self.height < 1:
@@ -50,7 +56,7 @@ class Intrinsics:
                 raise ConfigError(
                     f"intrinsics.{name}: must be a positive number (received {value})"
                 )
-        for name in ("cx", "cy"):
+        for name in ("cx", "cy", "k1", "k2"):
             if not math.isfinite(getattr(self, name)):
                 raise ConfigError(f"intrinsics.{name}: must be finite")
 
@@ -87,7 +93,7 @@ class Intrinsics:
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     def scaled(self, width: int, height: int) -> Intrinsics:
-        """The same camera at another image size."""
+        """The same camera at another image size (with the same lens distortion)."""
         sx, sy = width / self.width, height / self.height
         return Intrinsics(
             width,
@@ -96,11 +102,31 @@ class Intrinsics:
             self.fy * sy,
             (self.cx + 0.5) * sx - 0.5,
             (self.cy + 0.5) * sy - 0.5,
+            self.k1,
+            self.k2,
         )
 
+    def rays(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where pixels ``(u, v)`` look: ``x/z`` and ``y/z`` of their rays, undistorted.
+
+        The radial distortion is inverted by fixed-point iteration (as OpenCV's
+        ``undistortPoints`` does), to well below a thousandth of a pixel for the few
+        percent of distortion of a depth camera's lens.
+        """
+        xd = (np.asarray(u, dtype=float) - self.cx) / self.fx
+        yd = (np.asarray(v, dtype=float) - self.cy) / self.fy
+        if not (self.k1 or self.k2):
+            return xd, yd
+        x, y = xd, yd
+        for _ in range(20):
+            r2 = x * x + y * y
+            radial = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+            x, y = xd / radial, yd / radial
+        return x, y
+
     def to_dict(self) -> dict[str, float | int]:
-        """Plain dict (for ``intrinsics.json``)."""
-        return {
+        """Plain dict (for ``intrinsics.json``; ``k1``, ``k2`` only when not 0)."""
+        out: dict[str, float | int] = {
             "width": self.width,
             "height": self.height,
             "fx": self.fx,
@@ -108,6 +134,9 @@ class Intrinsics:
             "cx": self.cx,
             "cy": self.cy,
         }
+        if self.k1 or self.k2:
+            out.update(k1=self.k1, k2=self.k2)
+        return out
 
     @classmethod
     def from_dict(cls, data: dict) -> Intrinsics:
@@ -126,6 +155,8 @@ class Intrinsics:
                 float(data["fy"]),
                 float(data["cx"]),
                 float(data["cy"]),
+                float(data.get("k1", 0.0)),
+                float(data.get("k2", 0.0)),
             )
         except KeyError as exc:
             raise ConfigError(

@@ -149,7 +149,11 @@ class DetectionResult:
 
 
 class _Rays:
-    """Back-projection rays of a sub-sampled pixel grid, cached per intrinsics."""
+    """Back-projection rays of a sub-sampled pixel grid, cached per intrinsics.
+
+    With radial distortion the rays are undistorted once here, so that detection costs
+    the same per frame.
+    """
 
     def __init__(self, intrinsics: Intrinsics, step: int) -> None:
         k = intrinsics
@@ -157,12 +161,16 @@ class _Rays:
         self.u = np.arange(0, k.width, step)
         self.v = np.arange(0, k.height, step)
         shape = (len(self.v), len(self.u))
-        # flat per-pixel tables: x/z and y/z of each ray, and its pixel coordinates
-        x = ((self.u - k.cx) / k.fx).astype(np.float32)
-        y = ((self.v - k.cy) / k.fy).astype(np.float32)
-        self.x = np.broadcast_to(x[None, :], shape).ravel()
-        self.y = np.broadcast_to(y[:, None], shape).ravel()
         uu, vv = np.meshgrid(self.u, self.v)
+        # flat per-pixel tables: x/z and y/z of each ray, and its pixel coordinates
+        if k.k1 or k.k2:
+            x, y = k.rays(uu.ravel(), vv.ravel())
+            self.x, self.y = x.astype(np.float32), y.astype(np.float32)
+        else:
+            x = ((self.u - k.cx) / k.fx).astype(np.float32)
+            y = ((self.v - k.cy) / k.fy).astype(np.float32)
+            self.x = np.broadcast_to(x[None, :], shape).ravel()
+            self.y = np.broadcast_to(y[:, None], shape).ravel()
         self.pixels = np.column_stack([uu.ravel(), vv.ravel()])
 
 

@@ -6,8 +6,8 @@ dropped (counted as ``frames_dropped``), never queued. The node's loop detects p
 the newest frame and publishes a DetectionBatch on ``opt/<site>/detections/<sensor_id>``;
 per-stage timings go into the node's stats. A sensor whose calibration entry holds its
 own intrinsics (a checkerboard calibration with ``--refine-intrinsics``) is detected
-through that pinhole rather than the one its frames report (a camera's factory figures,
-or its type's).
+through that camera model (pinhole and radial distortion) rather than the one its
+frames report (a camera's factory figures, or its type's).
 """
 
 from __future__ import annotations
@@ -89,9 +89,8 @@ class DetectorService:
         ``sensor.pose``) and clock offset (subtracted from the frames' stamps); updates
         are applied with :meth:`apply_calibration`.
     intrinsics : Intrinsics, optional
-        The sensor's calibrated pinhole, used instead of each frame's (scaled to the
-        frame's size when its shape is the same). A calibrated lens distortion is not
-        applied: undistort the depth images in the camera's driver.
+        The sensor's calibrated camera model (pinhole and radial distortion), used
+        instead of each frame's (scaled to the frame's size when its shape is the same).
     """
 
     def __init__(
@@ -141,7 +140,7 @@ class DetectorService:
         clock_offset_s: float,
         intrinsics: Intrinsics | None = None,
     ) -> None:
-        """Use a new calibrated pose, clock offset and pinhole from the next frame on."""
+        """Use a new calibrated pose, clock offset and camera model from the next frame on."""
         self.detector.set_pose(world_from_camera)
         self.clock_offset_s = clock_offset_s
         self.intrinsics = intrinsics
@@ -174,7 +173,7 @@ class DetectorService:
             counters.inc(f"status_{result.status.replace('-', '_')}")
 
     def _calibrated(self, frame: Frame) -> Frame:
-        """The frame with the calibrated pinhole, if any (at the frame's image size).
+        """The frame with the calibrated camera model, if any (at the frame's image size).
 
         A frame of another shape (another image mode, cropped rather than scaled) keeps
         its own pinhole, with one warning.

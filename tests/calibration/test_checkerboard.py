@@ -507,12 +507,12 @@ def test_units_whose_lenses_differ_from_the_nominal_are_calibrated_with_their_in
     assert max(refined.report.rms_px.values()) < 0.25  # the corners' noise, 0.15 px per axis
     assert min(plain.report.rms_px.values()) > max(refined.report.rms_px.values())
     # what the solve says of its own intrinsics: focal lengths known to a few tenths of
-    # a percent here, and the distortion it found is not what the detector applies
+    # a percent here; the lens moves the farthest corners c3 saw by more than a pixel
     sd = refined.report.intrinsics_sd
     assert all(0 < v[0] < 0.005 * nominal.fx for v in sd.values()), sd
-    warnings = refined.intrinsics_warnings()
-    assert not any("poorly determined" in w for w in warnings), warnings
-    assert any(w.startswith("c3: radial distortion moves") for w in warnings), warnings
+    assert refined.intrinsics_warnings() == []
+    assert refined.report.distortion_px["c3"] > 1.0
+    assert refined.intrinsics["c3"].k1 == refined.distortion["c3"][0]
 
 
 def test_a_thin_session_says_its_refined_focal_lengths_are_poorly_determined() -> None:
@@ -530,7 +530,6 @@ def test_a_thin_session_says_its_refined_focal_lengths_are_poorly_determined() -
     assert worst > 5.0
     warnings = thin.intrinsics_warnings()
     assert any(w.startswith("c0: focal length poorly determined") for w in warnings), warnings
-    assert not any("radial distortion" in w for w in warnings), warnings  # none to speak of
     plain = calibrate_extrinsics(*args, SIM_BOARD.object_points(), **where)
     assert plain.intrinsics_warnings() == []
 
