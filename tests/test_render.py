@@ -7,11 +7,14 @@ rendered people against where they stand and what they wear. Every run is seeded
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from openptrack_py.config import Pose, SensorConfig
 from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.errors import ConfigError
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.sim.render import DEPTH_NOISE, WALL_HEIGHT_M, DepthRenderer, RenderedFrame
@@ -310,3 +313,10 @@ def test_rendering_is_deterministic_for_a_seed() -> None:
     assert np.array_equal(a.labels, b.labels)
     assert not np.array_equal(a.frame.depth, c.frame.depth, equal_nan=True)
     assert np.array_equal(a.labels, c.labels)  # the scene is the same, only the noise differs
+
+
+def test_a_lens_with_distortion_is_refused_by_the_pinhole_renderer() -> None:
+    spec = SensorSpec.from_config(SensorConfig(id="cam", type="kinect2", pose=Pose(z=2.5)))
+    lens = dataclasses.replace(Intrinsics.for_sensor("kinect2"), k1=-0.1)
+    with pytest.raises(ConfigError, match=r"sensors\.cam: the renderer draws through a pinhole"):
+        DepthRenderer(spec, Room(6.0, 5.0), np.random.default_rng(0), intrinsics=lens)

@@ -36,12 +36,12 @@ __all__ = [
 INTRINSIC_PRIOR = (0.05, 0.05, 0.05, 0.05, 0.1, 0.1)
 """Standard deviations of the weak prior on refined intrinsics, about the given ones:
 ``fx``, ``fy`` as a fraction of the given focal length, ``cx``, ``cy`` as a fraction of
-the image's width and height, and the radial terms ``k1``, ``k2`` (absolute). A unit's
-focal length and centre are within a few percent of its type's nominal ones (the factory
-figures of depth sensors differ from unit to unit by about 1-2 %), and a depth camera's
-lens is close to distortion-free once its own driver has undistorted the image. The
-prior only decides directions the views leave undetermined (a sensor with few views,
-all facing it): a hundred corners outweigh it."""
+the image's width and height, and the radial terms ``k1``, ``k2`` (absolute): wide
+enough for a unit whose focal length and centre are a few percent off its type's, and
+for the few percent of distortion of a depth camera's lens. The prior matters where the
+views say little (a sensor with few views, all at one distance); the report's standard
+deviations of the refined intrinsics say when they do
+(:meth:`BundleProblem.intrinsics_sd`)."""
 
 PRIOR_PX = 0.2
 """Pixels a one-standard-deviation departure from the prior costs, as one corner's

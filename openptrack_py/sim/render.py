@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from openptrack_py.detection.frame import Frame, Intrinsics, image_box
+from openptrack_py.errors import ConfigError
 from openptrack_py.geometry import apply, invert, world_from_optical
 from openptrack_py.sim.clothing import SKIN
 from openptrack_py.sim.sensor_spec import SensorSpec
@@ -166,7 +167,7 @@ class DepthRenderer:
     rng : numpy.random.Generator
         Noise source.
     intrinsics : Intrinsics, optional
-        Override the type's nominal intrinsics.
+        Override the type's nominal intrinsics (a pinhole: no lens distortion).
     noise : bool
         Apply the sensor type's depth degradation.
     """
@@ -184,6 +185,12 @@ class DepthRenderer:
         self.room = room
         self.rng = rng
         self.intrinsics = intrinsics or Intrinsics.for_sensor(spec.type.name)
+        if self.intrinsics.k1 or self.intrinsics.k2:
+            raise ConfigError(
+                f"sensors.{spec.id}: the renderer draws through a pinhole; intrinsics with "
+                f"lens distortion (k1={self.intrinsics.k1:g}, k2={self.intrinsics.k2:g}) "
+                "cannot be rendered"
+            )
         self.noise = DEPTH_NOISE[spec.type.name] if noise else None
         self.world_from_camera = world_from_optical(spec.pose)
         self.camera_from_world = invert(self.world_from_camera)
