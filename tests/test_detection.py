@@ -753,6 +753,16 @@ def test_intrinsics_rays_invert_the_lens_as_opencv_does() -> None:
     assert "k1" not in Intrinsics.for_sensor("kinect2").to_dict()  # files as before
     with pytest.raises(ConfigError, match=r"intrinsics\.k1"):
         Intrinsics(512, 424, 360.0, 360.0, 256.0, 212.0, k1=math.nan)
+    # a lens whose model stops growing inside the image cannot be inverted there: the
+    # corners see nothing rather than somewhere wrong, and the detector still runs
+    folded = dataclasses.replace(Intrinsics.for_sensor("kinect2"), k2=-0.15)
+    x, _ = folded.rays(np.array([0.0, 256.0]), np.array([0.0, 212.0]))
+    assert np.isnan(x[0]) and np.isfinite(x[1])
+    frame = Frame(0.0, 0, folded, depth=np.full((424, 512), 3.0, dtype=np.float32))
+    detector = PeopleDetector(
+        DetectorConfig(), sensor_type="kinect2", rng=np.random.default_rng(0)
+    )
+    assert detector.detect(frame).detections == ()  # a flat wall: nobody, and no error
 
 
 @pytest.mark.parametrize("k1, k2", [(-0.15, 0.05), (0.12, -0.05)])

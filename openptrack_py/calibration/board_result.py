@@ -155,7 +155,9 @@ class ExtrinsicCalibration:
         """What a user should know of the refined intrinsics, one line per sensor.
 
         A focal length whose standard deviation exceeds ``focal_sd`` (a fraction) is
-        poorly determined by the views, and the poses with it.
+        poorly determined by the views, and the poses with it; a lens whose fitted
+        distortion cannot be inverted out to the image's corners leaves the detector
+        blind there (strong radial terms fitted from views near the centre).
         """
         out = []
         for sid, k in self.intrinsics.items():
@@ -164,6 +166,15 @@ class ExtrinsicCalibration:
                 out.append(
                     f"{sid}: focal length poorly determined (±{100 * sd[0] / k.fx:.1f} %): "
                     "add placements nearer and farther, and towards the image's edges"
+                )
+            corners_x, _ = k.rays(
+                np.array([0.0, k.width - 1.0] * 2), np.repeat([0.0, k.height - 1.0], 2)
+            )
+            if not np.isfinite(corners_x).all():
+                out.append(
+                    f"{sid}: the fitted lens distortion (k1 {k.k1:.3f}, k2 {k.k2:.3f}) cannot be "
+                    "inverted at the image's corners, where the detector will see nothing: "
+                    "add placements towards the image's edges"
                 )
         return out
 

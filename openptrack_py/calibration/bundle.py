@@ -233,10 +233,11 @@ class BundleProblem:
     def intrinsics_sd(self, x: np.ndarray) -> np.ndarray:
         """``(sensors, 6)``: standard deviations of the refined intrinsics at ``x``.
 
-        From the Gauss-Newton covariance ``s^2 (J'J)^-1`` (``J`` by forward differences,
-        the prior's rows included; ``s`` the corners' residual scatter per coordinate),
-        so an intrinsic the views barely determine shows a large one. Zeros when the
-        intrinsics are not refined.
+        From the Gauss-Newton covariance ``(J'J)^-1`` of the whitened residuals (``J`` by
+        forward differences): the corners' rows divided by their measured scatter per
+        coordinate, the prior's by :data:`PRIOR_PX` (so that the prior counts with its
+        own standard deviations), so an intrinsic the views barely determine shows a
+        large one, at most its prior's. Zeros when the intrinsics are not refined.
         """
         if not self.refine_intrinsics:
             return np.zeros((self.sensors, 6))
@@ -248,9 +249,12 @@ class BundleProblem:
             moved[j] += step
             jac[:, j] = (self.residuals(moved) - base) / step
         used = 2 * int(self.mask.sum())
-        corners = base[: self.observed.size]
+        n = self.observed.size
+        corners = base[:n]
         scatter = float(corners @ corners) / max(used - self.n_params, 1)
-        cov = scatter * np.linalg.pinv(jac.T @ jac)
+        jac[:n] /= max(math.sqrt(scatter), 1e-12)
+        jac[n:] /= PRIOR_PX
+        cov = np.linalg.pinv(jac.T @ jac)
         sd = np.sqrt(np.maximum(np.diag(cov)[self.n_pose_params :], 0.0))
         return sd.reshape(self.sensors, 6)
 

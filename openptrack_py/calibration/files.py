@@ -152,11 +152,26 @@ class SensorCalibration(StrictModel):
     def camera(self) -> Intrinsics | None:
         """The calibrated camera model the detector uses (``None`` if the entry has none).
 
-        Its pinhole and radial distortion ``k1``, ``k2``; tangential terms are not used.
+        Its pinhole and radial distortion ``k1``, ``k2``.
+
+        Raises
+        ------
+        ConfigError
+            If the entry's distortion has terms the detector does not model (``p1``,
+            ``p2``, ``k3`` and beyond, as other calibration tools write them) that are
+            not 0: dropping them would misplace pixels silently.
         """
         k = self.intrinsics
         if k is None:
             return None
+        extra = [v for v in k.distortion[2:] if v != 0.0]
+        if extra:
+            raise ConfigError(
+                "intrinsics.distortion: the detector models radial k1, k2 only; the other "
+                f"terms must be 0 (received {list(k.distortion)}): undistort the images in "
+                "the camera's driver and give no distortion, or calibrate with "
+                "'openptrack calibrate checkerboard --refine-intrinsics'"
+            )
         radial = (*k.distortion, 0.0, 0.0)[:2]
         return Intrinsics(k.width, k.height, k.fx, k.fy, k.cx, k.cy, *radial)
 

@@ -17,10 +17,17 @@ import numpy as np
 from openptrack_py.errors import ConfigError
 from openptrack_py.sensor_types import SENSOR_TYPES
 
+RAY_ITERATIONS = 20
+"""Fixed-point iterations inverting the radial distortion of a pixel's ray."""
+RAY_TOLERANCE_PX = 0.01
+"""A ray whose distorted projection misses its pixel by more is not invertible there."""
+
 
 @dataclass(frozen=True, slots=True)
 class Intrinsics:
-    """Pinhole intrinsics of a depth image (colour images are registered to it).
+    """Camera model of a depth image: pinhole and radial distortion.
+
+    Colour images are registered to the depth image.
 
     Parameters
     ----------
@@ -107,22 +114,39 @@ class Intrinsics:
         )
 
     def rays(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Where pixels ``(u, v)`` look: ``x/z`` and ``y/z`` of their rays, undistorted.
+        """Where pixels look: ``x/z`` and ``y/z`` of their rays, undistorted.
 
-        The radial distortion is inverted by fixed-point iteration (as OpenCV's
-        ``undistortPoints`` does), to well below a thousandth of a pixel for the few
-        percent of distortion of a depth camera's lens.
+        The radial distortion is inverted by fixed-point iteration (OpenCV's
+        ``undistortPoints`` does the same, with fewer iterations by default). Where the
+        lens model cannot be inverted (beyond the radius at which ``r (1 + k1 r^2 +
+        k2 r^4)`` stops growing, which strong fitted terms put inside the image) the
+        iteration does not land back on the pixel: those rays are NaN.
+
+        Parameters
+        ----------
+        u, v : ndarray
+            Pixel coordinates (column, row).
+
+        Returns
+        -------
+        tuple of ndarray
+            ``x/z`` and ``y/z`` per pixel, NaN where the lens cannot be inverted.
         """
         xd = (np.asarray(u, dtype=float) - self.cx) / self.fx
         yd = (np.asarray(v, dtype=float) - self.cy) / self.fy
         if not (self.k1 or self.k2):
             return xd, yd
         x, y = xd, yd
-        for _ in range(20):
+        for _ in range(RAY_ITERATIONS):
             r2 = x * x + y * y
             radial = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
             x, y = xd / radial, yd / radial
-        return x, y
+        r2 = x * x + y * y
+        radial = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+        growing = 1.0 + 3.0 * self.k1 * r2 + 5.0 * self.k2 * r2 * r2 > 0.0
+        miss = np.hypot((x * radial - xd) * self.fx, (y * radial - yd) * self.fy)
+        bad = ~(growing & (radial > 0.0) & (miss <= RAY_TOLERANCE_PX))
+        return np.where(bad, np.nan, x), np.where(bad, np.nan, y)
 
     def to_dict(self) -> dict[str, float | int]:
         """Plain dict (for ``intrinsics.json``; ``k1``, ``k2`` only when not 0)."""

@@ -163,9 +163,11 @@ class _Rays:
         shape = (len(self.v), len(self.u))
         uu, vv = np.meshgrid(self.u, self.v)
         # flat per-pixel tables: x/z and y/z of each ray, and its pixel coordinates
+        self.partial = False
         if k.k1 or k.k2:
             x, y = k.rays(uu.ravel(), vv.ravel())
             self.x, self.y = x.astype(np.float32), y.astype(np.float32)
+            self.partial = not bool(np.isfinite(self.x).all())
         else:
             x = ((self.u - k.cx) / k.fx).astype(np.float32)
             y = ((self.v - k.cy) / k.fy).astype(np.float32)
@@ -284,6 +286,8 @@ class PeopleDetector:
         depth = frame.depth[::step, ::step].ravel()
         with np.errstate(invalid="ignore"):
             ok = (depth > 0) & (depth <= max_z)  # NaN compares False
+        if rays.partial:  # pixels whose lens cannot be inverted see nothing
+            ok &= np.isfinite(rays.x)
         z = depth[ok].astype(np.float32)
         pts = np.column_stack([rays.x[ok] * z, rays.y[ok] * z, z])
         pixels = np.compress(ok, rays.pixels, axis=0)

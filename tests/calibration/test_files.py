@@ -24,7 +24,7 @@ from openptrack_py.calibration.files import (
 )
 from openptrack_py.config import NetworkConfig, Pose, PoseError, SensorConfig, SimConfig
 from openptrack_py.detection.frame import Intrinsics
-from openptrack_py.errors import CalibrationError
+from openptrack_py.errors import CalibrationError, ConfigError
 from openptrack_py.geometry import pose_from_transform, world_from_optical
 from openptrack_py.sim.scenarios import build_scenario
 from openptrack_py.sim.simulator import Simulator
@@ -96,6 +96,18 @@ def test_a_walk_keeps_the_intrinsics_a_checkerboard_solved_and_a_checkerboard_re
     plain = SensorCalibration(pose=TRUE, method="checkerboard")
     assert current.replaced({"k2_b": plain}).sensors["k2_b"].intrinsics is None
     assert current.sensors["k2_a"].method == "checkerboard"  # the original is unchanged
+
+
+def test_lens_terms_the_detector_does_not_model_are_refused_not_dropped() -> None:
+    # a Kinect v2 infrared camera's factory terms (k1, k2, p1, p2, k3), as libfreenect2
+    # reports them: k3 is not 0
+    lens = CameraIntrinsics(width=512, height=424, fx=365.0, fy=365.0, cx=256.0, cy=212.0,
+                            distortion=(0.0905, -0.2706, 0.0, 0.0, 0.0967))  # fmt: skip
+    entry = SensorCalibration(pose=TRUE, intrinsics=lens)
+    with pytest.raises(ConfigError, match=r"intrinsics\.distortion: the detector models radial"):
+        entry.camera()
+    radial = lens.model_copy(update={"distortion": (0.0905, -0.2706, 0.0, 0.0, 0.0)})
+    assert SensorCalibration(pose=TRUE, intrinsics=radial).camera().k2 == -0.2706
 
 
 def test_a_hand_written_pose_is_the_same_as_its_matrix() -> None:
