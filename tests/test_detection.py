@@ -753,6 +753,9 @@ def test_intrinsics_rays_invert_the_lens_as_opencv_does() -> None:
     assert "k1" not in Intrinsics.for_sensor("kinect2").to_dict()  # files as before
     with pytest.raises(ConfigError, match=r"intrinsics\.k1"):
         Intrinsics(512, 424, 360.0, 360.0, 256.0, 212.0, k1=math.nan)
+    # projecting a ray through the lens lands back on its pixel
+    pu, pv = k.pixels(np.column_stack([x, y, np.ones_like(x)]))
+    np.testing.assert_allclose(np.column_stack([pu, pv]), np.column_stack([u, v]), atol=1e-6)
     # a lens whose model stops growing inside the image cannot be inverted there: the
     # corners see nothing rather than somewhere wrong, and the detector still runs
     folded = dataclasses.replace(Intrinsics.for_sensor("kinect2"), k2=-0.15)

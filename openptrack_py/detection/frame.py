@@ -148,6 +148,20 @@ class Intrinsics:
         bad = ~(growing & (radial > 0.0) & (miss <= RAY_TOLERANCE_PX))
         return np.where(bad, np.nan, x), np.where(bad, np.nan, y)
 
+    def pixels(self, cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Image coordinates ``(u, v)`` of optical-frame points ``cam (..., 3)``.
+
+        Through the lens; points at or behind the camera are not handled (clip ``z``
+        first).
+        """
+        z = cam[..., 2]
+        if not (self.k1 or self.k2):
+            return self.fx * cam[..., 0] / z + self.cx, self.fy * cam[..., 1] / z + self.cy
+        x, y = cam[..., 0] / z, cam[..., 1] / z
+        r2 = x * x + y * y
+        radial = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+        return self.fx * x * radial + self.cx, self.fy * y * radial + self.cy
+
     def to_dict(self) -> dict[str, float | int]:
         """Plain dict (for ``intrinsics.json``; ``k1``, ``k2`` only when not 0)."""
         out: dict[str, float | int] = {

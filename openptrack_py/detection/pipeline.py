@@ -432,9 +432,9 @@ class PeopleDetector:
             corners[:, c, 1] = xy[:, 1] + sy * half
             corners[:, c, 2] = blobs.top if top else 0.0
         cam = apply(camera_from_floor, corners)
-        z = np.maximum(cam[..., 2], 1e-3)
-        u = np.clip(k.fx * cam[..., 0] / z + k.cx, 0, k.width - 1)
-        v = np.clip(k.fy * cam[..., 1] / z + k.cy, 0, k.height - 1)
+        cam[..., 2] = np.maximum(cam[..., 2], 1e-3)
+        u, v = k.pixels(cam)
+        u, v = np.clip(u, 0, k.width - 1), np.clip(v, 0, k.height - 1)
         u0, v0 = u.min(axis=1).astype(int), v.min(axis=1).astype(int)
         u1, v1 = u.max(axis=1).astype(int), v.max(axis=1).astype(int)
         return [tuple(box) for box in np.column_stack([u0, v0, u1 - u0, v1 - v0]).tolist()]

@@ -45,6 +45,10 @@ def test_every_field_round_trips() -> None:
     assert back.view is not None and back.view.stamp == 99.5
     np.testing.assert_array_equal(back.view.corners, CORNERS + 1)
     np.testing.assert_allclose(back.view.camera_from_board, _pose())
+    # a camera that reports its lens: the radial terms travel too (and only then)
+    lens = Intrinsics(512, 424, 365.0, 365.0, 256.0, 212.0, k1=-0.12, k2=0.04)
+    assert decode_board_report(encode_board_report(_report(intrinsics=lens))).intrinsics == lens
+    assert b"k1" not in encode_board_report(report)
     bare = decode_board_report(encode_board_report(_report()))
     assert bare.corners is None and bare.view is None and bare.intrinsics is None
     assert not bare.end
@@ -103,6 +107,20 @@ def _wire(**fields: object) -> bytes:
                 }
             },
             "intrinsics.fx",
+        ),
+        (
+            {
+                "intrinsics": {
+                    "width": 512,
+                    "height": 424,
+                    "fx": 365.0,
+                    "fy": 365.0,
+                    "cx": 0.0,
+                    "cy": 0.0,
+                    "k1": 1e6,
+                }
+            },
+            "intrinsics.k1",
         ),
         (
             {
