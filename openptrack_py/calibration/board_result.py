@@ -115,16 +115,20 @@ class ExtrinsicCalibration:
     intrinsics : dict
         Per sensor id, its refined camera model, pinhole and radial distortion (empty
         unless ``refine_intrinsics``).
-    distortion : dict
-        Per sensor id, its refined OpenCV distortion coefficients ``(k1, k2, 0, 0)`` (radial
-        only) of the pixels the views gave (empty unless ``refine_intrinsics``).
     """
 
     world_from_optical: dict[str, np.ndarray]
     world_from_board: dict[float, np.ndarray]
     report: CalibrationReport
     intrinsics: dict[str, Intrinsics] = field(default_factory=dict)
-    distortion: dict[str, tuple[float, ...]] = field(default_factory=dict)
+
+    @property
+    def distortion(self) -> dict[str, tuple[float, ...]]:
+        """OpenCV distortion coefficients per sensor with refined intrinsics.
+
+        ``(k1, k2, 0, 0)``: radial only, as the calibration file writes them.
+        """
+        return {s: (k.k1, k.k2, 0.0, 0.0) for s, k in self.intrinsics.items()}
 
     def poses(self) -> dict[str, Pose]:
         """Every sensor's pose as a network file writes it."""
@@ -185,5 +189,5 @@ class ExtrinsicCalibration:
             return None
         return CameraIntrinsics(
             width=k.width, height=k.height, fx=k.fx, fy=k.fy, cx=k.cx, cy=k.cy,
-            distortion=self.distortion.get(sensor_id, ()),
+            distortion=(k.k1, k.k2, 0.0, 0.0),
         )  # fmt: skip

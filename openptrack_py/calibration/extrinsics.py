@@ -229,12 +229,12 @@ def _calibration(
     """The refined poses in the world frame, with the report."""
     cams, boards = fit.problem.unpack(fit.x)
     refined: dict[str, Intrinsics] = {}
-    distortion: dict[str, tuple[float, ...]] = {}
     if fit.problem.refine_intrinsics:
-        for s, k in zip(sensor_ids, fit.problem.intrinsics(fit.x), strict=True):
-            width, height = fit.problem.image_sizes[sensor_ids.index(s)]
+        solved = zip(
+            sensor_ids, fit.problem.image_sizes, fit.problem.intrinsics(fit.x), strict=True
+        )
+        for s, (width, height), k in solved:
             refined[s] = Intrinsics(width, height, *(float(v) for v in k))
-            distortion[s] = (float(k[4]), float(k[5]), 0.0, 0.0)
     return ExtrinsicCalibration(
         world_from_optical={s: world_from_ref @ invert(cams[i]) for i, s in enumerate(sensor_ids)},
         world_from_board={
@@ -242,7 +242,6 @@ def _calibration(
         },
         report=_report(fit, sensor_ids, reference, frame),
         intrinsics=refined,
-        distortion=distortion,
     )
 
 

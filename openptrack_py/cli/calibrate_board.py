@@ -226,9 +226,7 @@ def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:
         )
         k = calibration.intrinsics.get(sid)
         if k is not None:
-            out[-1].update(
-                fx=round(k.fx, 2), fy=round(k.fy, 2), k1=round(calibration.distortion[sid][0], 4)
-            )
+            out[-1].update(fx=round(k.fx, 2), fy=round(k.fy, 2), k1=round(k.k1, 4))
     columns = ["sensor", "views", "rms_px", "x", "y", "z", "yaw_deg", "pitch_deg", "roll_deg"]
     if calibration.intrinsics:
         columns += ["fx", "fy", "k1"]

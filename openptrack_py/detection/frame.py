@@ -138,11 +138,10 @@ class Intrinsics:
             return xd, yd
         x, y = xd, yd
         for _ in range(RAY_ITERATIONS):
-            r2 = x * x + y * y
-            radial = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+            radial = self._radial(x * x + y * y)
             x, y = xd / radial, yd / radial
         r2 = x * x + y * y
-        radial = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+        radial = self._radial(r2)
         growing = 1.0 + 3.0 * self.k1 * r2 + 5.0 * self.k2 * r2 * r2 > 0.0
         miss = np.hypot((x * radial - xd) * self.fx, (y * radial - yd) * self.fy)
         bad = ~(growing & (radial > 0.0) & (miss <= RAY_TOLERANCE_PX))
@@ -158,9 +157,12 @@ class Intrinsics:
         if not (self.k1 or self.k2):
             return self.fx * cam[..., 0] / z + self.cx, self.fy * cam[..., 1] / z + self.cy
         x, y = cam[..., 0] / z, cam[..., 1] / z
-        r2 = x * x + y * y
-        radial = 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+        radial = self._radial(x * x + y * y)
         return self.fx * x * radial + self.cx, self.fy * y * radial + self.cy
+
+    def _radial(self, r2: np.ndarray) -> np.ndarray:
+        """The lens's radial factor ``1 + k1 r^2 + k2 r^4`` at squared radii ``r2``."""
+        return 1.0 + self.k1 * r2 + self.k2 * r2 * r2
 
     def to_dict(self) -> dict[str, float | int]:
         """Plain dict (for ``intrinsics.json``; ``k1``, ``k2`` only when not 0)."""
