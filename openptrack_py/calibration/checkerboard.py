@@ -229,8 +229,12 @@ def _find(cv2: Any, img8: np.ndarray, board: Checkerboard) -> np.ndarray | None:
     """Corners by the sector-based detector, else the classic one; ``(n, 2)`` or None.
 
     Small images (below :data:`UPSCALE_BELOW_PX` pixels on a side) are tried again
-    upscaled twice, where the sector-based detector finds squares of 5-6 pixels.
+    upscaled twice, where the sector-based detector finds squares of 5-6 pixels. The
+    sector-based detector draws from OpenCV's global random generator: it is reseeded
+    to OpenCV's initial state before each search, so that what is found in an image
+    does not depend on the searches made before it in the process.
     """
+    cv2.setRNGSeed(0)  # 0 is OpenCV's initial state (cv::RNG maps it to 0xffffffff)
     found, corners = cv2.findChessboardCornersSB(
         img8, board.pattern_size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE
     )
@@ -238,6 +242,7 @@ def _find(cv2: Any, img8: np.ndarray, board: Checkerboard) -> np.ndarray | None:
         return corners.reshape(-1, 2).astype(np.float64)
     if min(img8.shape) < UPSCALE_BELOW_PX:
         big = cv2.resize(img8, None, fx=2, fy=2, interpolation=cv2.INTER_CUBIC)
+        cv2.setRNGSeed(0)
         found, corners = cv2.findChessboardCornersSB(
             big, board.pattern_size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE
         )

@@ -104,6 +104,18 @@ class SimSensor:
         return SensorSpec(id=self.id, type=kind, pose=self.pose, rate_hz=kind.rate_hz)
 
 
+ACCEPTANCE_ROOM = Room(6.0, 5.0)
+"""The room of the checkerboard acceptance figure: 6 x 5 m, empty."""
+ACCEPTANCE_SENSORS = (
+    SimSensor("k2a", "kinect2", Pose(x=0.2, y=0.2, z=2.6, yaw_deg=40, pitch_deg=25)),
+    SimSensor("k2b", "kinect2", Pose(x=5.8, y=0.2, z=2.6, yaw_deg=140, pitch_deg=25)),
+    SimSensor("k2c", "kinect2", Pose(x=5.8, y=4.8, z=2.6, yaw_deg=-140, pitch_deg=25)),
+    SimSensor("sr", "sr4500", Pose(x=0.2, y=4.8, z=2.4, yaw_deg=-40, pitch_deg=30)),
+)
+"""Three Kinect v2 in three corners of :data:`ACCEPTANCE_ROOM`, an SR4500 in the fourth
+(lower, steeper): the issue's "3 Kinect v2 + 1 SR4500 in a room"."""
+
+
 @dataclass(frozen=True)
 class PoseError:
     """How far an estimated pose is from the true one.

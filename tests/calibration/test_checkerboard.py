@@ -32,6 +32,8 @@ from openptrack_py.config import Pose
 from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.errors import CalibrationError, ConfigError
 from openptrack_py.eval.checkerboard import (
+    ACCEPTANCE_ROOM,
+    ACCEPTANCE_SENSORS,
     SimSensor,
     pose_error,
     render_observations,
@@ -41,21 +43,13 @@ from openptrack_py.geometry import invert, world_from_optical
 from openptrack_py.sim.board_session import board_session, board_visible
 from openptrack_py.sim.boards import SIM_BOARD, draw_board
 from openptrack_py.sim.render import DepthRenderer
-from openptrack_py.sim.world import Room
 from tests.conftest import people_snapshot
 
 pytest.importorskip("cv2")
 
-ROOM = Room(6.0, 5.0)
+ROOM = ACCEPTANCE_ROOM
 EMPTY = people_snapshot([])
-
-# Three Kinect v2 in three corners of the room, an SR4500 in the fourth (lower, steeper).
-SENSORS = [
-    SimSensor("k2a", "kinect2", Pose(x=0.2, y=0.2, z=2.6, yaw_deg=40, pitch_deg=25)),
-    SimSensor("k2b", "kinect2", Pose(x=5.8, y=0.2, z=2.6, yaw_deg=140, pitch_deg=25)),
-    SimSensor("k2c", "kinect2", Pose(x=5.8, y=4.8, z=2.6, yaw_deg=-140, pitch_deg=25)),
-    SimSensor("sr", "sr4500", Pose(x=0.2, y=4.8, z=2.4, yaw_deg=-40, pitch_deg=30)),
-]
+SENSORS = list(ACCEPTANCE_SENSORS)
 
 
 # --------------------------------------------------------------------------- helpers
