@@ -43,7 +43,7 @@ the next thing to move into a module of their own.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -57,9 +57,10 @@ from openptrack_py.tracking.identity.likelihood import (
     distance_samples,
     rowwise_distance,
 )
-from openptrack_py.tracking.identity.models import PooledIdentity, TrackLooks, TrackModels
+from openptrack_py.tracking.identity.models import PooledIdentity, Side, TrackLooks, TrackModels
 from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
 from openptrack_py.tracking.identity.roster import Roster
+from openptrack_py.tracking.identity.swaps import SwapWatch
 from openptrack_py.tracking.neighbours import close_pairs, count_within
 from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
 
@@ -82,23 +83,6 @@ test, 45 % in its occlusion test) and several sensors at 15-30 Hz, a second with
 detection is no blob at all. Two tracks that both went unseen for longer and then meet
 on one detection are no evidence of two people (two tracks of people who walked out,
 catching the next person in through the same door)."""
-
-
-@dataclass(frozen=True)
-class _Side:
-    """Looks compared on one side of a log-likelihood ratio: colours, embeddings, heights.
-
-    ``sig_ok`` marks the colours that count; ``emb_w`` weighs each embedding (a
-    detection's confidence, 1 for a model that has one, 0 for none); ``hgt_ok`` marks
-    the heights that count (none by default).
-    """
-
-    sig: np.ndarray
-    sig_ok: np.ndarray
-    emb: np.ndarray
-    emb_w: np.ndarray
-    hgt: np.ndarray | None = None
-    hgt_ok: np.ndarray | None = None
 
 
 class AppearanceIdentity:
@@ -131,7 +115,8 @@ class AppearanceIdentity:
         self.together: dict[tuple[int, int], float] = {}
         self.returns = ReturnRate()
         self.roster = Roster()
-        self.counters = {"reidentified": 0, "unlinked": 0}
+        self.swaps = SwapWatch(config.link_margin, config.reid_window_s, MIN_REID_OBSERVATIONS)
+        self.counters = {"reidentified": 0, "unlinked": 0, "swapped_back": 0}
         self.told: list[tuple[int, str]] = []  # name_track's calls, in order
         self.set_roster(roster or Roster())
 
@@ -286,8 +271,61 @@ class AppearanceIdentity:
         if self._uses_heights:
             learnable = (confirmed, certain, where, others)
             heights = self._learn_heights(table, mrows, cols, dets, clean, learnable, t)
+        self._watch_swaps(table, mrows, cols, looks, clean, heights, t)
         self._gather_evidence(mrows, cols, dets, looks, clean, heights, t)
         self._decide(table, t)
+
+    def _watch_swaps(
+        self,
+        table: TrackTable,
+        mrows: np.ndarray,
+        cols: np.ndarray,
+        looks: Looks,
+        clean: np.ndarray,
+        heights: np.ndarray,
+        t: float,
+    ) -> None:
+        """Pairs of settled tracks that meet are watched; exchanged identities swap back."""
+        m = self.models
+        rows = np.flatnonzero(table.confirmed)
+        mr = m.rows(table.ids[rows])
+        has = mr >= 0
+        rows, mr = rows[has], mr[has]
+        rows = rows[(m.sig_n[mr] >= DISTINCT_OBSERVATIONS) | (m.emb_w[mr] > 0)]
+        ii, jj = close_pairs(table.x[rows, 0:2], self.cfg.share_distance_m)
+        if len(ii):
+            pairs = _pairs(table.ids[rows[ii]], table.ids[rows[jj]])
+            self.swaps.meet(pairs, t, lambda ids: self._models_side(m.rows(ids)))
+        has_sig = clean & looks.has_signature[cols]
+        has_hgt = clean & (self._uses_heights and self.stature.ready)
+        use = has_sig | has_hgt | (looks.embedding_weight[cols] > 0)
+        if use.any():
+            seen = _looks_side(looks, cols[use], has_sig[use], heights[use], has_hgt[use])
+            self.swaps.observe(
+                m.ids[mrows[use]], seen, t, lambda a, b: self._pair_llr(a, b, rowwise=True)
+            )
+        for (a, b), before in self.swaps.decide(t, set(table.ids.tolist())):
+            self._exchange(a, b, before)
+
+    def _exchange(self, a: int, b: int, before: Side) -> None:
+        """Tracks ``a`` and ``b`` exchange identities (models, links, names, evidence).
+
+        Each takes the other's colour model from ``before`` they met: since then each
+        model has been learning the other person.
+        """
+        m = self.models
+        ra, rb = m.rows(np.array([a, b]))
+        if ra < 0 or rb < 0:
+            return
+        m.exchange(int(ra), int(rb))
+        m.sig[[ra, rb]] = before.sig[[1, 0]]
+        for table in (self.links, self.reid_ev, self.named, self.resembled, self.since):
+            va, vb = table.pop(a, None), table.pop(b, None)
+            if vb is not None:
+                table[a] = vb
+            if va is not None:
+                table[b] = va
+        self.counters["swapped_back"] += 1
 
     @property
     def _uses_heights(self) -> bool:
@@ -449,7 +487,7 @@ class AppearanceIdentity:
             lone, part = who[: len(lonely)], who[len(lonely) :]
             partner_side = self._models_side(part, settled=m.sig_n[part] >= 1)
             alone = self._pair_llr(seen, partner_side, rowwise=True)
-            both = _Side(
+            both = Side(
                 0.5 * (m.sig[lone] + m.sig[part]), np.ones(len(lone), dtype=bool),
                 m.emb[part], np.zeros(len(part)),
             )  # fmt: skip
@@ -471,7 +509,7 @@ class AppearanceIdentity:
 
     # --------------------------------------------------------------- learning
 
-    def _pair_llr(self, a: _Side, b: _Side, rowwise: bool = False) -> np.ndarray:
+    def _pair_llr(self, a: Side, b: Side, rowwise: bool = False) -> np.ndarray:
         """Log-likelihood ratio of "same person" (all three cues).
 
         ``(len(a), len(b))`` for every pair, or ``(len(a),)`` for the pairs ``a[k]``,
@@ -514,7 +552,7 @@ class AppearanceIdentity:
 
     def _models_side(
         self, rows: np.ndarray, settled: np.ndarray | None = None, visit: bool = False
-    ) -> _Side:
+    ) -> Side:
         """Track models ``rows``; colours count where ``settled`` (default: enough seen).
 
         ``visit``: their colours over the visit (as pooled), not as they look now.
@@ -523,14 +561,14 @@ class AppearanceIdentity:
         if settled is None:
             settled = m.sig_n[rows] >= self.cfg.min_observations
         sig = (m.visit if visit else m.sig)[rows]
-        side = _Side(sig, settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float))
+        side = Side(sig, settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float))
         if not self._uses_heights:
             return side
         return replace(side, hgt=m.hgt[rows], hgt_ok=m.hgt_n[rows] >= self.cfg.min_observations)
 
-    def _pool_side(self, entries: tuple[PooledIdentity, ...]) -> _Side:
+    def _pool_side(self, entries: tuple[PooledIdentity, ...]) -> Side:
         """Pooled identities."""
-        side = _Side(
+        side = Side(
             np.array([e.sig for e in entries]),
             np.array([e.sig_n >= self.cfg.min_observations for e in entries]),
             np.array([e.emb for e in entries]),
@@ -573,7 +611,7 @@ class AppearanceIdentity:
             sig, sig_ok = self.roster.references("signature", m.sig.shape[1])
             emb, emb_ok = self.roster.references("embedding", m.emb.shape[1])
             llr = self._pair_llr(
-                seen, _Side(sig, sig_ok, emb, emb_ok.astype(float), *self.roster.heights())
+                seen, Side(sig, sig_ok, emb, emb_ok.astype(float), *self.roster.heights())
             )
             np.add.at(m.name_ev, mrows, rho * llr)
             # bounded, so a track that changed person can be renamed; a row is shifted
@@ -603,7 +641,7 @@ class AppearanceIdentity:
         faces = np.zeros_like(llr)
         face_w = np.zeros_like(llr)
         if self.face.ready and seen.emb_w.any():
-            faces_only = _Side(seen.sig, np.zeros_like(seen.sig_ok), seen.emb, seen.emb_w)
+            faces_only = Side(seen.sig, np.zeros_like(seen.sig_ok), seen.emb, seen.emb_w)
             faces = self._pair_llr(faces_only, pooled)
             face_w = seen.emb_w[:, None] * pooled.emb_w[None, :]
         where = np.array([e.xy for e in entries])
@@ -828,6 +866,7 @@ class AppearanceIdentity:
             self.colour.state(), self.face.state(), dict(self.apart), self.returns.state(),
             dict(self.together), tuple(self.roster.names), len(self.told),
             self.stature.state(), self.height_bias.state(), dict(self.resembled), dict(self.since),
+            self.swaps.state(),
         )  # fmt: skip
 
     def restore(self, state: tuple) -> None:
@@ -853,6 +892,7 @@ class AppearanceIdentity:
             self.stature, self.height_bias = DistanceLikelihood(self.cfg.max_llr), HeightBias()
         self.resembled = dict(rest[6]) if len(rest) > 6 else {}
         self.since = dict(rest[7]) if len(rest) > 7 else {}
+        self.swaps.restore(rest[8] if len(rest) > 8 else {})
         if len(rest) > 2:  # the roster may have changed since: names follow by name
             self._follow_roster(rest[2])
             for track_id, name in self.told[rest[3] :]:  # said since: said again
@@ -898,7 +938,7 @@ def _looks_side(
     has_sig: np.ndarray | None = None,
     heights: np.ndarray | None = None,
     has_hgt: np.ndarray | None = None,
-) -> _Side:
+) -> Side:
     """Detections ``cols`` of a batch; colours count where ``has_sig`` (default: any).
 
     ``heights`` (of the detections ``cols``) count where ``has_hgt`` (default: all); no
@@ -906,7 +946,7 @@ def _looks_side(
     """
     if heights is not None and has_hgt is None:
         has_hgt = np.ones(len(heights), dtype=bool)
-    return _Side(
+    return Side(
         looks.signature[cols],
         looks.has_signature[cols] if has_sig is None else has_sig,
         looks.embedding[cols],

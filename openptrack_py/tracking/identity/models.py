@@ -148,6 +148,12 @@ class TrackModels:
         self.emb[rows] = np.where(norm > 0, mean / np.maximum(norm, 1e-12), 0.0)
         self.emb_w[rows] = total + weights
 
+    def exchange(self, a: int, b: int) -> None:
+        """Rows ``a`` and ``b`` exchange everything but their track ids."""
+        for name in self.COLUMNS[1:]:
+            col = getattr(self, name)
+            col[[a, b]] = col[[b, a]]
+
     def resize_names(self, mapping: np.ndarray) -> None:
         """Reorder the name evidence after a roster change.
 
@@ -245,3 +251,28 @@ class PooledIdentity:
     hgt: float = 0.0
     hgt_n: float = 0.0
     born_at: float = -np.inf
+
+
+@dataclass(frozen=True)
+class Side:
+    """Looks compared on one side of a log-likelihood ratio: colours, embeddings, heights.
+
+    ``sig_ok`` marks the colours that count; ``emb_w`` weighs each embedding (a
+    detection's confidence, 1 for a model that has one, 0 for none); ``hgt_ok`` marks
+    the heights that count (none by default).
+    """
+
+    sig: np.ndarray
+    sig_ok: np.ndarray
+    emb: np.ndarray
+    emb_w: np.ndarray
+    hgt: np.ndarray | None = None
+    hgt_ok: np.ndarray | None = None
+
+    def take(self, rows: np.ndarray) -> Side:
+        """The looks of ``rows`` (in that order, repeats allowed)."""
+        return Side(
+            self.sig[rows], self.sig_ok[rows], self.emb[rows], self.emb_w[rows],
+            None if self.hgt is None else self.hgt[rows],
+            None if self.hgt_ok is None else self.hgt_ok[rows],
+        )  # fmt: skip
