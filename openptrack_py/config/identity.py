@@ -75,7 +75,11 @@ class IdentityConfig(StrictModel):
     link_evidence : float
         Accumulated log-likelihood ratio a track needs for a registered name; it must
         also beat the second best by ``link_margin``. Two tracks whose models differ by
-        ``link_margin`` are two people.
+        ``link_margin`` are two people; two tracks that met (came within
+        ``share_distance_m``) and, once apart, look more like each other's identity
+        than their own by ``link_margin`` (their mean log-likelihood ratios summed)
+        exchanged their people there, and take each other's identity back
+        (:mod:`~openptrack_py.tracking.identity.swaps`).
     link_margin : float
         See ``link_evidence``.
     reid_min_s : float

@@ -93,20 +93,20 @@ def test_a_watch_decides_once_and_survives_a_snapshot() -> None:
     saved = watch.state()
     for k in range(3):  # track 1 now looks like 2 and 2 like 1
         watch.observe(np.array([1, 2]), _side([1.0, 0.0]), 1.0 + k, _llr)
-        decided = watch.decide(1.0 + k, {1, 2})
+        decided = watch.decide(1.0 + k, np.array([1, 2]))
         assert [p for p, _ in decided] == ([(1, 2)] if k == 2 else [])
     assert not watch.watches
     watch.restore(saved)
     for k in range(3):  # as they were: settled, nothing to swap
         watch.observe(np.array([1, 2]), _side([0.0, 1.0]), 1.0 + k, _llr)
-        assert watch.decide(1.0 + k, {1, 2}) == []
+        assert watch.decide(1.0 + k, np.array([1, 2])) == []
     assert not watch.watches
 
 
 def test_a_watch_is_forgotten_when_a_track_ends_or_the_window_passes() -> None:
     watch = SwapWatch(margin=2.0, window_s=10.0, min_observations=3)
     watch.meet([(1, 2), (3, 4)], 0.0, lambda ids: _side([0.0] * len(ids)))
-    assert watch.decide(0.5, {1, 2, 3}) == []
+    assert watch.decide(0.5, np.array([1, 2, 3])) == []
     assert set(watch.watches) == {(1, 2)}
-    assert watch.decide(11.0, {1, 2}) == []
+    assert watch.decide(11.0, np.array([1, 2])) == []
     assert not watch.watches

@@ -24,6 +24,9 @@
   the pool. A person the pool missed once (back under a new identity) would leave two
   identities in it, splitting every later return; the newer replaces the older when it
   is pooled, unless those it looked like were there at the same time (two people).
+* **Exchanged identities** (identity management in multi-target tracking): two tracks
+  that met and, once apart, each look like the other's identity from before they met,
+  take their identities back (:mod:`.swaps`).
 * **Names** (the paper's registered children, v2's named faces): evidence for each
   registered person accumulates the same way (bounded by shifting a track's evidence
   down as a whole, so its margins between names survive); a name needs ``link_margin``
@@ -304,7 +307,7 @@ class AppearanceIdentity:
             self.swaps.observe(
                 m.ids[mrows[use]], seen, t, lambda a, b: self._pair_llr(a, b, rowwise=True)
             )
-        for (a, b), before in self.swaps.decide(t, set(table.ids.tolist())):
+        for (a, b), before in self.swaps.decide(t, table.ids):
             self._exchange(a, b, before)
 
     def _exchange(self, a: int, b: int, before: Side) -> None:

@@ -117,10 +117,11 @@ class SwapWatch:
                 watch.count[side] += len(rows)
                 self._touched.add(pair)
 
-    def decide(self, t: float, alive: set[int]) -> list[tuple[Pair, Side]]:
+    def decide(self, t: float, alive: np.ndarray) -> list[tuple[Pair, Side]]:
         """Pairs whose identities were exchanged, with their looks from before they met.
 
-        Decided pairs are forgotten.
+        Decided pairs are forgotten, and once a second those of which a track is no
+        longer among the ``alive`` ids or that are past their window.
         """
         out: list[tuple[Pair, Side]] = []
         for pair in self._touched:
@@ -138,8 +139,10 @@ class SwapWatch:
                 self._forget(pair)
         if t - self._swept >= 1.0:
             self._swept = t
+            alive_ids = set(alive.tolist())
             for pair, watch in list(self.watches.items()):
-                if pair[0] not in alive or pair[1] not in alive or t - watch.met > self.window_s:
+                gone = pair[0] not in alive_ids or pair[1] not in alive_ids
+                if gone or t - watch.met > self.window_s:
                     self._forget(pair)
         return out
 
