@@ -110,3 +110,41 @@ def test_a_watch_is_forgotten_when_a_track_ends_or_the_window_passes() -> None:
     assert set(watch.watches) == {(1, 2)}
     assert watch.decide(11.0, np.array([1, 2])) == []
     assert not watch.watches
+
+
+def test_a_track_is_swapped_at_most_once_per_step_by_its_most_decisive_pair() -> None:
+    """Three tracks that all exchanged people: one pair is put right, not three."""
+    watch = SwapWatch(margin=2.0, window_s=10.0, min_observations=1)
+    looks = {1: 0.0, 2: 1.0, 3: 0.5}
+    watch.meet([(1, 2), (1, 3), (2, 3)], 0.0, lambda ids: _side([looks[i] for i in ids]))
+
+    def llr(a: Side, b: Side) -> np.ndarray:
+        return -4.0 * np.abs(a.sig[:, 0] - b.sig[:, 0]) + 2.0
+
+    # track 1 now looks like 2, track 2 like 3, track 3 like 1
+    watch.observe(np.array([1, 2, 3]), _side([1.0, 0.5, 0.0]), 1.0, llr)
+    decided = watch.decide(1.0, np.array([1, 2, 3]))
+    ids = [i for pair, _ in decided for i in pair]
+    assert len(decided) == 1 and len(ids) == len(set(ids))
+    assert decided[0][0] in {(1, 2), (1, 3)}  # the two pairs that score 4 (the third 0)
+    assert not watch.watches
+
+
+def test_a_restored_watch_decides_as_the_uninterrupted_one() -> None:
+    """A pair past its window is never decided, whenever the last sweep was (a
+    late-batch replay restores mid-run and must end where the run would have)."""
+
+    def run(restore_at: float | None) -> list:
+        watch = SwapWatch(margin=2.0, window_s=10.0, min_observations=3)
+        watch.meet([(1, 2)], 0.0, lambda ids: _side([0.0 if i == 1 else 1.0 for i in ids]))
+        decided = []
+        for k in range(110):
+            t = 0.1 * (k + 1)
+            if restore_at is not None and abs(t - restore_at) < 1e-9:
+                watch.restore(watch.state())
+            if t > 10.05:  # the exchanged looks are seen only after the window
+                watch.observe(np.array([1, 2]), _side([1.0, 0.0]), t, _llr)
+            decided += [p for p, _ in watch.decide(t, np.array([1, 2]))]
+        return decided
+
+    assert run(None) == run(10.1) == []

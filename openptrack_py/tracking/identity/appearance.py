@@ -313,16 +313,26 @@ class AppearanceIdentity:
     def _exchange(self, a: int, b: int, before: Side) -> None:
         """Tracks ``a`` and ``b`` exchange identities (models, links, names, evidence).
 
-        Each takes the other's colour model from ``before`` they met: since then each
-        model has been learning the other person.
+        Each takes the other's looks from ``before`` they met (colours, embedding,
+        height): since then each model has been learning the other person. Not while
+        either holds a re-identification that may still be undone (undoing it gives
+        the track back its own id, which after an exchange the other track holds).
         """
+        if a in self.links or b in self.links:
+            return
         m = self.models
         ra, rb = m.rows(np.array([a, b]))
         if ra < 0 or rb < 0:
             return
         m.exchange(int(ra), int(rb))
-        m.sig[[ra, rb]] = before.sig[[1, 0]]
-        for table in (self.links, self.reid_ev, self.named, self.resembled, self.since):
+        rows, other = np.array([ra, rb]), np.array([1, 0])
+        m.sig[rows] = before.sig[other]
+        had = before.emb_w[other] > 0
+        m.emb[rows[had]] = before.emb[other[had]]
+        if before.hgt is not None and before.hgt_ok is not None:
+            had = before.hgt_ok[other]
+            m.hgt[rows[had]] = before.hgt[other[had]]
+        for table in (self.reid_ev, self.named, self.resembled, self.since):
             va, vb = table.pop(a, None), table.pop(b, None)
             if vb is not None:
                 table[a] = vb
@@ -895,7 +905,7 @@ class AppearanceIdentity:
             self.stature, self.height_bias = DistanceLikelihood(self.cfg.max_llr), HeightBias()
         self.resembled = dict(rest[6]) if len(rest) > 6 else {}
         self.since = dict(rest[7]) if len(rest) > 7 else {}
-        self.swaps.restore(rest[8] if len(rest) > 8 else {})
+        self.swaps.restore(rest[8] if len(rest) > 8 else ({}, -np.inf))
         if len(rest) > 2:  # the roster may have changed since: names follow by name
             self._follow_roster(rest[2])
             for track_id, name in self.told[rest[3] :]:  # said since: said again

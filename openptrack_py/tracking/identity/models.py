@@ -39,7 +39,8 @@ class TrackModels:
     own : ndarray of bool
         Whether ``stable`` is the track's own (not taken from a pooled identity).
     born : ndarray
-        Time of the track's first detection.
+        Time of the first detection of the identity's track (it goes with the identity
+        when two tracks exchange identities).
     name_ev : ndarray
         ``(n, R)`` evidence (log-likelihood ratio) for each registered name.
     """

@@ -9,17 +9,20 @@ within seconds. Identity management in multi-target tracking (Shin, Guibas and Z
 afterwards as what sorts them out again.
 
 :class:`SwapWatch` keeps, for each pair of tracks that came within a body width of each
-other, both identities' looks as they were before they met. Once the two are apart, every
-clean observation of either track is compared with both remembered looks. Once each
-track has ``min_observations`` and the tracks look, on average, more like each other's
-identity than their own by ``margin`` (the sum of the two tracks' mean log-likelihood
-ratios, the test that tells two people apart), the identities were exchanged and are
-swapped back; once they look more like their own by ``margin``, the pair is settled.
-Observations that cannot tell the two apart (two people of one height, seen without
-colours) leave it undecided. Where everyone dresses
-alike the ratios are near 0 and nothing is ever swapped. Another meeting of the pair
-before it is decided starts its evidence again (the looks stay those from before the
-first meeting); a pair apart for ``window_s`` without a decision is forgotten.
+other, both identities' looks as they were before they met. Once the two are apart, each
+observation of either track (colours and heights of clean detections, identity
+embeddings of any) is compared with both remembered looks. Once each track has
+``min_observations`` and the tracks look, on average, more like each other's identity
+than their own by ``margin`` (the sum of the two tracks' mean log-likelihood ratios, the
+test that tells two people apart), the identities were exchanged and are swapped back;
+once they look more like their own by ``margin``, the pair is settled. Observations that
+cannot tell the two apart (two people of one height, seen without colours) pull the
+means towards 0 and leave the pair undecided; where everyone dresses alike nothing is
+ever swapped. Another meeting of the pair before it is decided starts its evidence again
+(the looks stay those from before the first meeting); a pair apart for ``window_s``
+without a decision is no longer decided, and is forgotten. In one step a track is
+swapped at most once, by its most decisive pair (in a group of three that all exchanged
+people, one pair is put right at a time).
 """
 
 from __future__ import annotations
@@ -33,14 +36,17 @@ from openptrack_py.tracking.identity.models import Side
 
 Pair = tuple[int, int]
 """Two track ids, the smaller first."""
+SWEEP_S = 1.0
+"""How often pairs of ended tracks and past windows are forgotten (seconds)."""
 
 
 @dataclass
 class _Watch:
-    """One pair's remembered looks (``before[k]`` of ``pair[k]``) and evidence.
+    """One pair's remembered looks (``before`` row ``k`` of ``pair[k]``) and evidence.
 
     ``evidence[k]``: the sum over track ``pair[k]``'s observations of (log-likelihood
     ratio for the other's identity) - (for its own), and ``count[k]`` their number.
+    ``before`` is never changed in place (copies share it).
     """
 
     before: Side
@@ -59,11 +65,11 @@ class SwapWatch:
     ----------
     margin : float
         Summed mean log-likelihood ratio by which the two tracks must look like each
-        other's identity to be swapped.
+        other's identity to be swapped (or like their own to be settled).
     window_s : float
-        How long after their last meeting a pair is watched.
+        How long after their last meeting a pair may be decided.
     min_observations : int
-        Clean observations of each track before the pair is decided.
+        Observations of each track before the pair is decided.
     """
 
     def __init__(self, margin: float, window_s: float, min_observations: int) -> None:
@@ -96,48 +102,64 @@ class SwapWatch:
     def observe(
         self, ids: np.ndarray, seen: Side, t: float, llr: Callable[[Side, Side], np.ndarray]
     ) -> None:
-        """Clean observations ``seen`` of tracks ``ids`` (one each); ``llr`` row-wise."""
+        """Observations ``seen`` of tracks ``ids`` (one each); ``llr`` row-wise.
+
+        Every (observation, watched pair of its track) is compared in one call of
+        ``llr`` for the track's own remembered identity and one for the other's.
+        """
         if not self.watches or not len(ids):
             return
-        index: dict[int, list[int]] = {}
+        obs: list[int] = []
+        pairs: list[Pair] = []
+        sides: list[int] = []
         for k, i in enumerate(ids.tolist()):
-            if i in self._pairs_of:
-                index.setdefault(i, []).append(k)
-        for tid, obs in index.items():
-            rows = np.array(obs)
-            for pair in self._pairs_of[tid]:
-                watch = self.watches[pair]
-                if watch.met >= t:
-                    continue
-                side = pair.index(tid)
-                own = np.full(len(rows), side)
-                mine = llr(seen.take(rows), watch.before.take(own))
-                theirs = llr(seen.take(rows), watch.before.take(1 - own))
-                watch.evidence[side] += float((theirs - mine).sum())
-                watch.count[side] += len(rows)
-                self._touched.add(pair)
+            for pair in self._pairs_of.get(i, ()):
+                if self.watches[pair].met < t:
+                    obs.append(k)
+                    pairs.append(pair)
+                    sides.append(0 if pair[0] == i else 1)
+        if not obs:
+            return
+        befores = [self.watches[p].before for p in pairs]
+        seen = seen.take(np.array(obs))
+        diff = llr(seen, _stack(befores, [1 - s for s in sides])) - llr(
+            seen, _stack(befores, sides)
+        )
+        for pair, side, d in zip(pairs, sides, diff.tolist(), strict=True):
+            watch = self.watches[pair]
+            watch.evidence[side] += d
+            watch.count[side] += 1.0
+        self._touched.update(pairs)
 
     def decide(self, t: float, alive: np.ndarray) -> list[tuple[Pair, Side]]:
         """Pairs whose identities were exchanged, with their looks from before they met.
 
-        Decided pairs are forgotten, and once a second those of which a track is no
-        longer among the ``alive`` ids or that are past their window.
+        Decided pairs are forgotten, and so is every other pair of a swapped track
+        (what was remembered of its identity is the other track's now); every
+        :data:`SWEEP_S`, so are the pairs of which a track is not among the ``alive``
+        ids, and those past their window.
         """
-        out: list[tuple[Pair, Side]] = []
+        scored = []
         for pair in self._touched:
             watch = self.watches.get(pair)
-            if watch is None or (watch.count < self.min_observations).any():
+            if watch is None or t - watch.met > self.window_s:
                 continue
-            score = float((watch.evidence / watch.count).sum())
-            if abs(score) >= self.margin:
-                self._forget(pair)
-                if score > 0:
-                    out.append((pair, watch.before))
+            if (watch.count >= self.min_observations).all():
+                score = float((watch.evidence / watch.count).sum())
+                if abs(score) >= self.margin:
+                    scored.append((score, pair))
         self._touched = set()
-        for (a, b), _ in out:  # what was remembered of them is the other's now
-            for pair in list(self._pairs_of.get(a, ())) + list(self._pairs_of.get(b, ())):
+        out: list[tuple[Pair, Side]] = []
+        swapped: set[int] = set()
+        for score, pair in sorted(scored, reverse=True):
+            if score > 0 and swapped.isdisjoint(pair):
+                out.append((pair, self.watches[pair].before))
+                swapped.update(pair)
+            self._forget(pair)
+        for tid in swapped:
+            for pair in list(self._pairs_of.get(tid, ())):
                 self._forget(pair)
-        if t - self._swept >= 1.0:
+        if t - self._swept >= SWEEP_S:
             self._swept = t
             alive_ids = set(alive.tolist())
             for pair, watch in list(self.watches.items()):
@@ -155,15 +177,33 @@ class SwapWatch:
             if not pairs:
                 del self._pairs_of[tid]
 
-    def state(self) -> dict[Pair, _Watch]:
-        """The watches (independent copies)."""
-        return {p: w.copy() for p, w in self.watches.items()}
+    def state(self) -> tuple[dict[Pair, _Watch], float]:
+        """The watches and the time of the last sweep.
 
-    def restore(self, state: dict[Pair, _Watch]) -> None:
+        The watches are copies; their remembered looks are shared (never changed).
+        """
+        return {p: w.copy() for p, w in self.watches.items()}, self._swept
+
+    def restore(self, state: tuple[dict[Pair, _Watch], float]) -> None:
         """Return to a :meth:`state`."""
-        self.watches = {p: w.copy() for p, w in state.items()}
+        watches, self._swept = state
+        self.watches = {p: w.copy() for p, w in watches.items()}
         self._pairs_of = {}
         for pair in self.watches:
             for tid in pair:
                 self._pairs_of.setdefault(tid, set()).add(pair)
-        self._touched, self._swept = set(), -np.inf
+        self._touched = set()
+
+
+def _stack(befores: list[Side], rows: list[int]) -> Side:
+    """Row ``rows[k]`` of ``befores[k]`` for every ``k``, as one :class:`Side`."""
+    picks = list(zip(befores, rows, strict=True))
+
+    def col(name: str) -> np.ndarray:
+        return np.stack([getattr(b, name)[r] for b, r in picks])
+
+    heights = befores[0].hgt is not None
+    return Side(
+        col("sig"), col("sig_ok"), col("emb"), col("emb_w"),
+        col("hgt") if heights else None, col("hgt_ok") if heights else None,
+    )  # fmt: skip
