@@ -274,21 +274,23 @@ class AppearanceIdentity:
         if self._uses_heights:
             learnable = (confirmed, certain, where, others)
             heights = self._learn_heights(table, mrows, cols, dets, clean, learnable, t)
-        self._watch_swaps(table, mrows, cols, looks, clean, heights, t)
-        self._gather_evidence(mrows, cols, dets, looks, clean, heights, t)
+        # what each detection says of who it is: colours and heights of clean ones,
+        # identity embeddings of any
+        has_sig = clean & looks.has_signature[cols]
+        has_hgt = clean & (self._uses_heights and self.stature.ready)
+        useful = has_sig | has_hgt | (looks.embedding_weight[cols] > 0)
+        mrows, cols = mrows[useful], cols[useful]
+        seen = _looks_side(looks, cols, has_sig[useful], heights[useful], has_hgt[useful])
+        self._watch_swaps(table, m.ids[mrows], seen, t)
+        if len(mrows):
+            self._gather_evidence(mrows, cols, dets, seen, t)
         self._decide(table, t)
 
-    def _watch_swaps(
-        self,
-        table: TrackTable,
-        mrows: np.ndarray,
-        cols: np.ndarray,
-        looks: Looks,
-        clean: np.ndarray,
-        heights: np.ndarray,
-        t: float,
-    ) -> None:
-        """Pairs of settled tracks that meet are watched; exchanged identities swap back."""
+    def _watch_swaps(self, table: TrackTable, ids: np.ndarray, seen: Side, t: float) -> None:
+        """Pairs of settled tracks that meet are watched; exchanged identities swap back.
+
+        ``seen``: this step's observations of tracks ``ids``.
+        """
         m = self.models
         rows = np.flatnonzero(table.confirmed)
         mr = m.rows(table.ids[rows])
@@ -299,14 +301,7 @@ class AppearanceIdentity:
         if len(ii):
             pairs = _pairs(table.ids[rows[ii]], table.ids[rows[jj]])
             self.swaps.meet(pairs, t, lambda ids: self._models_side(m.rows(ids)))
-        has_sig = clean & looks.has_signature[cols]
-        has_hgt = clean & (self._uses_heights and self.stature.ready)
-        use = has_sig | has_hgt | (looks.embedding_weight[cols] > 0)
-        if use.any():
-            seen = _looks_side(looks, cols[use], has_sig[use], heights[use], has_hgt[use])
-            self.swaps.observe(
-                m.ids[mrows[use]], seen, t, lambda a, b: self._pair_llr(a, b, rowwise=True)
-            )
+        self.swaps.observe(ids, seen, t, lambda a, b: self._pair_llr(a, b, rowwise=True))
         for (a, b), before in self.swaps.decide(t, table.ids):
             self._exchange(a, b, before)
 
@@ -596,30 +591,16 @@ class AppearanceIdentity:
         )
 
     def _gather_evidence(
-        self,
-        mrows: np.ndarray,
-        cols: np.ndarray,
-        dets: DetectionArrays,
-        looks: Looks,
-        clean: np.ndarray,
-        heights: np.ndarray,
-        t: float,
+        self, mrows: np.ndarray, cols: np.ndarray, dets: DetectionArrays, seen: Side, t: float
     ) -> None:
         """Each observation adds to the evidence for pooled identities and names.
 
-        ``clean``: the detections whose colours and height describe their person alone;
-        ``heights``: their heights, corrected for the sensor's error.
+        ``seen``: the observations (detections ``cols`` of model rows ``mrows``), their
+        colours and heights marked where they describe their person alone, heights
+        corrected for the sensor's error.
         """
         m = self.models
-        has_hgt = clean & (self._uses_heights and self.stature.ready)
-        has_sig = clean & looks.has_signature[cols]
-        useful = has_sig | has_hgt | (looks.embedding_weight[cols] > 0)
-        if not useful.any():
-            return
-        mrows, cols, heights = mrows[useful], cols[useful], heights[useful]
-        has_sig, has_hgt = has_sig[useful], has_hgt[useful]
         rho = self.cfg.evidence_per_observation
-        seen = _looks_side(looks, cols, has_sig, heights, has_hgt)
         if len(self.roster):
             sig, sig_ok = self.roster.references("signature", m.sig.shape[1])
             emb, emb_ok = self.roster.references("embedding", m.emb.shape[1])
@@ -639,8 +620,8 @@ class AppearanceIdentity:
         )
         if not young.any():
             return
-        mrows, cols, has_sig, has_hgt = mrows[young], cols[young], has_sig[young], has_hgt[young]
-        seen = _looks_side(looks, cols, has_sig, heights[young], has_hgt)
+        mrows, cols, seen = mrows[young], cols[young], seen.take(np.flatnonzero(young))
+        has_sig, has_hgt = seen.sig_ok, seen.hgt_ok
         entries = self.pool + tuple(
             self.links[int(m.ids[r])] for r in mrows if int(m.ids[r]) in self.links
         )
