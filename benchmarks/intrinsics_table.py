@@ -27,18 +27,13 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from openptrack_py.calibration.extrinsics import calibrate_extrinsics
-from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.eval.checkerboard import (
     ACCEPTANCE_ROOM,
     ACCEPTANCE_SENSORS,
     SimSensor,
-    pose_error,
-    render_observations,
+    render_board_session,
+    solve_board_session,
 )
-from openptrack_py.geometry import world_from_optical
-from openptrack_py.sim.board_session import board_session
-from openptrack_py.sim.boards import SIM_BOARD
 
 SEEDS = tuple(range(2, 10))
 """Not looked at while the intrinsics were added (seeds 0 and 1 were)."""
@@ -52,13 +47,9 @@ def units(seed: int, kind: str) -> list[SimSensor]:
     rng = np.random.default_rng(1000 + seed)
     out = []
     for s in ACCEPTANCE_SENSORS:
-        k = Intrinsics.for_sensor(s.type)
-        scale = k.width / 512
         d = rng.uniform(0.015, 0.03) * rng.choice([-1, 1])
         du, dv = rng.uniform(-6, 6, 2)
-        own = Intrinsics(k.width, k.height, k.fx * (1 + d), k.fy * (1 + d * rng.uniform(0.8, 1.0)),
-                         k.cx + du * scale, k.cy + dv * scale)  # fmt: skip
-        out.append(SimSensor(s.id, s.type, s.pose, own))
+        out.append(s.with_own_pinhole(d, d * rng.uniform(0.8, 1.0), du, dv))
     return out
 
 
@@ -66,25 +57,13 @@ def one(job: tuple[int, str]) -> dict[str, object]:
     """Errors of every sensor of one rendered session, solved both ways."""
     seed, kind = job
     sensors = units(seed, kind)
-    session = board_session(
-        SIM_BOARD, ACCEPTANCE_ROOM, [u.spec() for u in sensors], np.random.default_rng(seed),
-        placements=PLACEMENTS,
-    )  # fmt: skip
-    obs = render_observations(sensors, ACCEPTANCE_ROOM, session, seed=seed + 1)
-    nominal = {u.id: Intrinsics.for_sensor(u.type) for u in sensors}
-    assert session.floor is not None
+    session, obs = render_board_session(sensors, ACCEPTANCE_ROOM, placements=PLACEMENTS, seed=seed)
     out: dict[str, object] = {"seed": seed, "kind": kind}
     for refine in (False, True):
-        result = calibrate_extrinsics(
-            obs, nominal, SIM_BOARD.object_points(), floor_stamp=session.floor.stamp,
-            world_from_floor_board=session.floor.world_from_board, refine_intrinsics=refine,
-        )  # fmt: skip
-        errors = {
-            u.id: pose_error(result.world_from_optical[u.id], world_from_optical(u.pose))
-            for u in sensors
-        }
+        result = solve_board_session(sensors, session, obs, refine_intrinsics=refine)
         out["refined" if refine else "nominal"] = {
-            s: [round(e.translation_cm, 3), round(e.rotation_deg, 4)] for s, e in errors.items()
+            s: [round(e.translation_cm, 3), round(e.rotation_deg, 4)]
+            for s, e in result.errors.items()
         }
     return out
 

@@ -13,6 +13,11 @@ then compared with the true poses.
 
 The world frame is set by the floor board at its true pose, as a user who measured where
 the board lay would give it, so the estimates are in the room's coordinates.
+
+The module is long because rendering a session and solving it are separate steps (one
+rendering is solved several ways by the intrinsics table and its test) beside the
+recording of sessions to folders; the recording is the next thing to move into a module
+of its own.
 """
 
 from __future__ import annotations
@@ -86,6 +91,20 @@ class SimSensor:
         if cfg.pose is None:
             raise ConfigError(f"sensors.{cfg.id}.pose: a simulated sensor needs a pose")
         return cls(cfg.id, cfg.type, cfg.pose)
+
+    def with_own_pinhole(self, focal: float, focal_y: float, du: float, dv: float) -> SimSensor:
+        """The sensor as a unit with its own pinhole, off its type's nominal one.
+
+        Focal lengths scaled by ``1 + focal`` and ``1 + focal_y``, the principal point
+        moved by ``(du, dv)`` pixels of a 512-pixel-wide image (scaled to the type's).
+        """
+        k = Intrinsics.for_sensor(self.type)
+        scale = k.width / 512
+        own = Intrinsics(
+            k.width, k.height, k.fx * (1 + focal), k.fy * (1 + focal_y),
+            k.cx + du * scale, k.cy + dv * scale,
+        )  # fmt: skip
+        return SimSensor(self.id, self.type, self.pose, own)
 
     def spec(self) -> SensorSpec:
         """The simulator's description of this sensor.
@@ -392,6 +411,62 @@ def refit_intrinsics(
     return fitted, reposed
 
 
+def render_board_session(
+    sensors: Sequence[SimSensor],
+    room: Room,
+    *,
+    board: Checkerboard = SIM_BOARD,
+    placements: int = 30,
+    seed: int = 0,
+    progress: CalibrationProgress | None = None,
+) -> tuple[BoardSession, list[BoardObservation]]:
+    """Script a board session (seed ``seed``) and render it through every sensor.
+
+    Returns the session and the board observations found in the rendered frames (the
+    sensors' noise drawn from ``seed + 1``); see :func:`simulate_checkerboard_calibration`.
+    """
+    rng = np.random.default_rng(seed)
+    session = board_session(board, room, [s.spec() for s in sensors], rng, placements=placements)
+    observations = render_observations(sensors, room, session, seed=seed + 1, progress=progress)
+    return session, observations
+
+
+def solve_board_session(
+    sensors: Sequence[SimSensor],
+    session: BoardSession,
+    observations: list[BoardObservation],
+    *,
+    board: Checkerboard = SIM_BOARD,
+    reference: str | None = None,
+    min_shared_views: int = 3,
+    estimate_intrinsics: bool = False,
+    refine_intrinsics: bool = False,
+) -> SimCalibration:
+    """Solve a rendered session's poses and compare them with the true ones.
+
+    See :func:`simulate_checkerboard_calibration`; one rendering can be solved several
+    ways.
+    """
+    floor = session.floor
+    intrinsics = {s.id: Intrinsics.for_sensor(s.type) for s in sensors}
+    if estimate_intrinsics:
+        intrinsics, observations = refit_intrinsics(observations, sensors, board)
+    calibration = calibrate_extrinsics(
+        observations,
+        intrinsics,
+        board.object_points(),
+        reference=reference,
+        floor_stamp=None if floor is None else floor.stamp,
+        world_from_floor_board=None if floor is None else floor.world_from_board,
+        min_shared_views=min_shared_views,
+        refine_intrinsics=refine_intrinsics,
+    )
+    truth = {s.id: world_from_optical(s.pose) for s in sensors}
+    errors = {s.id: pose_error(calibration.world_from_optical[s.id], truth[s.id]) for s in sensors}
+    counts = {s.id: sum(o.sensor_id == s.id for o in observations) for s in sensors}
+    return SimCalibration(calibration, truth, errors, session, counts)
+
+
 def simulate_checkerboard_calibration(
     sensors: Sequence[SimSensor],
     room: Room,
@@ -443,25 +518,11 @@ def simulate_checkerboard_calibration(
         When the calibration itself fails (a sensor never saw the board, sensors not
         connected by enough shared views, ...).
     """
-    rng = np.random.default_rng(seed)
-    specs = [s.spec() for s in sensors]
-    session = board_session(board, room, specs, rng, placements=placements)
-    observations = render_observations(sensors, room, session, seed=seed + 1, progress=progress)
-    floor = session.floor
-    intrinsics = {s.id: Intrinsics.for_sensor(s.type) for s in sensors}
-    if estimate_intrinsics:
-        intrinsics, observations = refit_intrinsics(observations, sensors, board)
-    calibration = calibrate_extrinsics(
-        observations,
-        intrinsics,
-        board.object_points(),
-        reference=reference,
-        floor_stamp=None if floor is None else floor.stamp,
-        world_from_floor_board=None if floor is None else floor.world_from_board,
-        min_shared_views=min_shared_views,
-        refine_intrinsics=refine_intrinsics,
+    session, observations = render_board_session(
+        sensors, room, board=board, placements=placements, seed=seed, progress=progress
     )
-    truth = {s.id: world_from_optical(s.pose) for s in sensors}
-    errors = {s.id: pose_error(calibration.world_from_optical[s.id], truth[s.id]) for s in sensors}
-    counts = {s.id: sum(o.sensor_id == s.id for o in observations) for s in sensors}
-    return SimCalibration(calibration, truth, errors, session, counts)
+    return solve_board_session(
+        sensors, session, observations, board=board, reference=reference,
+        min_shared_views=min_shared_views, estimate_intrinsics=estimate_intrinsics,
+        refine_intrinsics=refine_intrinsics,
+    )  # fmt: skip

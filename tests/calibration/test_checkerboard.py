@@ -36,8 +36,9 @@ from openptrack_py.eval.checkerboard import (
     ACCEPTANCE_SENSORS,
     SimSensor,
     pose_error,
-    render_observations,
+    render_board_session,
     simulate_checkerboard_calibration,
+    solve_board_session,
 )
 from openptrack_py.geometry import invert, world_from_optical
 from openptrack_py.sim.board_session import board_session, board_visible
@@ -576,28 +577,14 @@ def test_rendered_units_with_their_own_focal_lengths_calibrate_with_refined_intr
     pinhole every sensor is 5-8 cm off; with its intrinsics solved too, the Kinect v2
     are within 1.2 cm and 0.2 degrees, and the SR4500 (176 x 144 pixels, whose centre
     and turn trade off) within 1 cm and 0.4 degrees."""
-    units = []
-    for sensor, (d, du, dv) in zip(SENSORS, [(0.025, 5, -4), (-0.02, -6, 3), (0.015, 4, 5),
-                                            (-0.025, -3, -2)], strict=True):  # fmt: skip
-        k = Intrinsics.for_sensor(sensor.type)
-        scale = k.width / 512
-        own = Intrinsics(k.width, k.height, k.fx * (1 + d), k.fy * (1 + 0.8 * d),
-                         k.cx + du * scale, k.cy + dv * scale)  # fmt: skip
-        units.append(SimSensor(sensor.id, sensor.type, sensor.pose, own))
-    session = board_session(
-        SIM_BOARD, ROOM, [u.spec() for u in units], np.random.default_rng(SEED),
-        placements=PLACEMENTS,
-    )  # fmt: skip
-    obs = render_observations(units, ROOM, session, seed=SEED + 1)
-    nominal = {u.id: Intrinsics.for_sensor(u.type) for u in units}
-    where = {
-        "floor_stamp": session.floor.stamp,
-        "world_from_floor_board": session.floor.world_from_board,
-    }
-    plain = calibrate_extrinsics(obs, nominal, SIM_BOARD.object_points(), **where)
-    refined = calibrate_extrinsics(
-        obs, nominal, SIM_BOARD.object_points(), **where, refine_intrinsics=True
-    )
+    offsets = [(0.025, 5, -4), (-0.02, -6, 3), (0.015, 4, 5), (-0.025, -3, -2)]
+    units = [
+        sensor.with_own_pinhole(d, 0.8 * d, du, dv)
+        for sensor, (d, du, dv) in zip(SENSORS, offsets, strict=True)
+    ]
+    session, obs = render_board_session(units, ROOM, placements=PLACEMENTS, seed=SEED)
+    plain = solve_board_session(units, session, obs).calibration
+    refined = solve_board_session(units, session, obs, refine_intrinsics=True).calibration
     for unit in units:
         truth = world_from_optical(unit.pose)
         before = pose_error(plain.world_from_optical[unit.id], truth)
