@@ -1,25 +1,38 @@
 r"""How likely a new track is someone from the pool: the prior of re-identification.
 
-A young track is either a stranger or one of the pooled identities it could have
+A young track is either a stranger or one of the ``N`` pooled identities it could have
 walked to. Its appearance evidence against pooled identity ``j`` is a likelihood ratio
-``L_j`` ("this pooled person" against "someone else"). With a share ``r`` of new tracks
-being returns, spread evenly over the ``N`` reachable pooled identities, Bayes gives
+``L_j`` ("this pooled person" against "someone else"). Each person who left may come
+back, so the chance that a new track is a return grows with the number of people who
+could be returning: with the odds ``\rho`` of one given pooled person against a
+stranger (a return hazard per absent person over an arrival rate of strangers), the
+prior of identity ``j`` is ``\rho / (1 + N \rho)`` and of a stranger ``1 / (1 + N
+\rho)``, and Bayes gives
 
 .. math::
 
-    P(j \mid \text{evidence}) = \frac{r L_j / N}{(1 - r) + r \bar L},
-    \qquad \bar L = \frac{1}{N} \sum_k L_k .
+    P(j \mid \text{evidence}) = \frac{\rho L_j}{1 + \rho \sum_k L_k} .
 
-So the evidence one link needs grows with the number of candidates (among twenty people
-in dark clothes, one that looks alike is no surprise) and with how rarely people come
-back. ``r`` is a property of the site, not of the tracker: an exhibition's visitors
-rarely return, a classroom's children always do. :class:`ReturnRate` estimates it
-online from the young tracks seen so far by expectation-maximisation over the
-two-component mixture (stranger, return) whose components' likelihood ratios are known
-and whose proportion is not: each track's ``\bar L`` gives its responsibility
-``r \bar L / ((1 - r) + r \bar L)``, and ``r`` is their mean, with a Beta(2, 2) prior so
-a handful of tracks cannot drive it to 0 or 1. The same mixture-proportion estimate
-appears in the false discovery rate literature (the share of true nulls).
+So the evidence one link needs grows with the number of look-alike candidates (among
+twenty people in dark clothes, one that looks alike is no surprise) and with how rarely
+people come back. ``\rho`` is a property of the site, not of the tracker: an
+exhibition's visitors rarely return, a classroom's children always do.
+:class:`ReturnRate` estimates it online from the young tracks seen so far by
+expectation-maximisation over the two-component mixture (stranger, return) whose
+components' likelihood ratios are known and whose proportion is not (the same
+mixture-proportion estimate as the share of true nulls in the false discovery rate
+literature, here with a proportion that depends on each track's candidates). Each
+track's responsibility is ``\rho S / (1 + \rho S)`` with ``S = \sum_k L_k``, and the
+M-step solves for ``\rho`` given how many candidates each track had, with a prior of
+one return and one stranger among single candidates (so a handful of tracks cannot
+drive it to 0 or infinity).
+
+Why odds per pooled person and not one share of returns among new tracks: the first
+people of a session all arrive as strangers, while hardly anyone has left yet; a share
+learned from them says returns are rare, and a person who comes back once the room
+has emptied then needs far more evidence than their look gives. The odds learned from
+the same strangers, each met by a pool of one or two, still expect a return when
+seven people are out.
 """
 
 from __future__ import annotations
@@ -29,14 +42,21 @@ from collections import deque
 import numpy as np
 
 MEMORY = 100
-"""Young tracks the return rate is estimated from (the most recent)."""
-PRIOR = (2.0, 2.0)
-"""Beta prior on the return rate: one return and one stranger seen before any track."""
+"""Young tracks the return odds are estimated from (the most recent)."""
+PRIOR_RETURNS = 1.0
+"""Pseudo-tracks in the prior: this many returns and as many strangers, one candidate each."""
 EM_STEPS = 25
+BISECTION_STEPS = 40
+ODDS_BOUNDS = (1e-4, 1e4)
 
 
 class ReturnRate:
-    """Online estimate of the share of new tracks that are returning people.
+    """Online estimate of the odds that a new track is a given pooled person.
+
+    Attributes
+    ----------
+    odds : float
+        ``rho``: the prior odds of one pooled identity against a stranger.
 
     Parameters
     ----------
@@ -45,43 +65,74 @@ class ReturnRate:
     """
 
     def __init__(self, memory: int = MEMORY) -> None:
-        self._mean_lr: deque[float] = deque(maxlen=memory)
-        self.rate = self._estimate(0.5)
+        self._tracks: deque[tuple[float, int]] = deque(maxlen=memory)
+        self.odds = self._estimate(1.0)
+
+    def rate(self, candidates: int) -> float:
+        """Prior share of returns among new tracks with ``candidates`` pooled people in reach."""
+        return candidates * self.odds / (1.0 + candidates * self.odds)
 
     def add(self, llrs: np.ndarray) -> None:
         """One young track's settled evidence: mean log-likelihood ratio per candidate.
 
         A track with no candidate (nobody in the pool could have walked there) tells
-        nothing about the rate and is skipped.
+        nothing about the odds and is skipped.
         """
         llrs = np.asarray(llrs, dtype=float)
         llrs = llrs[np.isfinite(llrs)]
         if not len(llrs):
             return
-        self._mean_lr.append(float(np.exp(llrs).mean()))
-        self.rate = self._estimate(self.rate)
+        self._tracks.append((float(np.exp(llrs).sum()), len(llrs)))
+        self.odds = self._estimate(self.odds)
 
     def _estimate(self, start: float) -> float:
-        a, b = PRIOR
-        m = np.array(self._mean_lr)
-        r = start
+        total, candidates = np.array(self._tracks, dtype=float).reshape(-1, 2).T
+        # the prior: PRIOR_RETURNS returns and as many strangers, one candidate each
+        candidates = np.concatenate([candidates, np.ones(2 * int(PRIOR_RETURNS))])
+        rho = start
         for _ in range(EM_STEPS):
-            resp = r * m / ((1.0 - r) + r * m)
-            r = (resp.sum() + a - 1.0) / (len(m) + a + b - 2.0)
-        return float(r)
+            resp = rho * total / (1.0 + rho * total)
+            rho = _solve_odds(resp.sum() + PRIOR_RETURNS, candidates)
+        return rho
 
-    def state(self) -> tuple[float, tuple[float, ...]]:
+    def state(self) -> tuple[str, float, tuple[tuple[float, int], ...]]:
         """For snapshots."""
-        return self.rate, tuple(self._mean_lr)
+        return "odds", self.odds, tuple(self._tracks)
 
-    def restore(self, state: tuple[float, tuple[float, ...]]) -> None:
-        """Return to a :meth:`state`."""
-        self.rate = state[0]
-        self._mean_lr.clear()
-        self._mean_lr.extend(state[1])
+    def restore(self, state: tuple) -> None:
+        """Return to a :meth:`state`.
+
+        A state saved before the odds were per pooled person holds a share of returns
+        and one number per track: the share becomes odds against one candidate and the
+        history is dropped.
+        """
+        self._tracks.clear()
+        if state[0] != "odds":
+            share = float(state[0])
+            self.odds = float(np.clip(share / max(1.0 - share, 1e-9), *ODDS_BOUNDS))
+            return
+        self.odds = float(state[1])
+        self._tracks.extend(state[2])
 
 
-def link_posterior(mean_llr: np.ndarray, rate: float) -> np.ndarray:
+def _solve_odds(returns: float, candidates: np.ndarray) -> float:
+    r"""The M-step: ``rho`` with ``sum_i N_i rho / (1 + N_i rho) = returns``.
+
+    The left side grows from 0 to the number of tracks with ``rho``, so the root is
+    unique; bisection on ``log rho``.
+    """
+    lo, hi = np.log(ODDS_BOUNDS[0]), np.log(ODDS_BOUNDS[1])
+    for _ in range(BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        x = candidates * np.exp(mid)
+        if (x / (1.0 + x)).sum() < returns:
+            lo = mid
+        else:
+            hi = mid
+    return float(np.exp(0.5 * (lo + hi)))
+
+
+def link_posterior(mean_llr: np.ndarray, odds: float) -> np.ndarray:
     """Probability that each candidate track is each pooled identity.
 
     Parameters
@@ -90,8 +141,8 @@ def link_posterior(mean_llr: np.ndarray, rate: float) -> np.ndarray:
         ``(C, P)`` mean log-likelihood ratio of each young track's observations against
         each pooled identity; ``-inf`` where the track could not be that person (out of
         reach, no evidence).
-    rate : float
-        Prior share of new tracks that are returns (:class:`ReturnRate`).
+    odds : float
+        Prior odds of one pooled identity against a stranger (:class:`ReturnRate`).
 
     Returns
     -------
@@ -100,7 +151,4 @@ def link_posterior(mean_llr: np.ndarray, rate: float) -> np.ndarray:
         most 1 (the rest is "a stranger").
     """
     lr = np.exp(mean_llr)
-    reachable = np.isfinite(mean_llr).sum(axis=1, keepdims=True)
-    n = np.maximum(reachable, 1)
-    mean = lr.sum(axis=1, keepdims=True) / n
-    return rate * lr / n / ((1.0 - rate) + rate * mean)
+    return odds * lr / (1.0 + odds * lr.sum(axis=1, keepdims=True))
