@@ -17,15 +17,14 @@ So the evidence one link needs grows with the number of look-alike candidates (a
 twenty people in dark clothes, one that looks alike is no surprise) and with how rarely
 people come back. ``\rho`` is a property of the site, not of the tracker: an
 exhibition's visitors rarely return, a classroom's children always do.
-:class:`ReturnRate` estimates it online from the young tracks seen so far by
-expectation-maximisation over the two-component mixture (stranger, return) whose
-components' likelihood ratios are known and whose proportion is not (the same
-mixture-proportion estimate as the share of true nulls in the false discovery rate
-literature, here with a proportion that depends on each track's candidates). Each
-track's responsibility is ``\rho S / (1 + \rho S)`` with ``S = \sum_k L_k``, and the
-M-step solves for ``\rho`` given how many candidates each track had, with a prior of
-one return and one stranger among single candidates (so a handful of tracks cannot
-drive it to 0 or infinity).
+:class:`ReturnRate` estimates it online from the young tracks seen so far, as the
+proportion of a two-component mixture (stranger, return) whose components' likelihood
+ratios are known and whose proportion is not (the same mixture-proportion estimate as
+the share of true nulls in the false discovery rate literature, here with a proportion
+that depends on each track's candidates). With ``S = \sum_k L_k`` a track's evidence
+has likelihood ``(1 + \rho S) / (1 + \rho N)`` up to a factor free of ``\rho``; the
+estimate maximises their product times a prior of one return and one stranger among
+single candidates (so a handful of tracks cannot drive it to 0 or infinity).
 
 Why odds per pooled person and not one share of returns among new tracks: the first
 people of a session all arrive as strangers, while hardly anyone has left yet; a share
@@ -45,9 +44,8 @@ MEMORY = 100
 """Young tracks the return odds are estimated from (the most recent)."""
 PRIOR_RETURNS = 1.0
 """Pseudo-tracks in the prior: this many returns and as many strangers, one candidate each."""
-EM_STEPS = 25
-BISECTION_STEPS = 40
-ODDS_BOUNDS = (1e-4, 1e4)
+LOG_ODDS = np.linspace(np.log(1e-4), np.log(1e4), 369)
+"""Where the posterior of the odds is evaluated (steps of 0.05 in ``log rho``)."""
 
 
 class ReturnRate:
@@ -66,7 +64,7 @@ class ReturnRate:
 
     def __init__(self, memory: int = MEMORY) -> None:
         self._tracks: deque[tuple[float, int]] = deque(maxlen=memory)
-        self.odds = self._estimate(1.0)
+        self.odds = self._estimate()
 
     def rate(self, candidates: int) -> float:
         """Prior share of returns among new tracks with ``candidates`` pooled people in reach."""
@@ -83,17 +81,28 @@ class ReturnRate:
         if not len(llrs):
             return
         self._tracks.append((float(np.exp(llrs).sum()), len(llrs)))
-        self.odds = self._estimate(self.odds)
+        self.odds = self._estimate()
 
-    def _estimate(self, start: float) -> float:
+    def _estimate(self) -> float:
+        """The odds of highest posterior, over :data:`LOG_ODDS` refined by a parabola.
+
+        The log posterior of ``rho`` is ``sum_i [log(1 + rho S_i) - log(1 + rho N_i)]``
+        plus the prior's ``log rho - 2 log(1 + rho)``; evaluated on the whole grid at
+        once it has no local optimum to stop at.
+        """
         total, candidates = np.array(self._tracks, dtype=float).reshape(-1, 2).T
-        # the prior: PRIOR_RETURNS returns and as many strangers, one candidate each
-        candidates = np.concatenate([candidates, np.ones(2 * int(PRIOR_RETURNS))])
-        rho = start
-        for _ in range(EM_STEPS):
-            resp = rho * total / (1.0 + rho * total)
-            rho = _solve_odds(resp.sum() + PRIOR_RETURNS, candidates)
-        return rho
+        rho = np.exp(LOG_ODDS)
+        post = (
+            np.log1p(rho[:, None] * total).sum(axis=1)
+            - np.log1p(rho[:, None] * candidates).sum(axis=1)
+            + PRIOR_RETURNS * (LOG_ODDS - 2.0 * np.log1p(rho))
+        )
+        k = int(np.clip(np.argmax(post), 1, len(LOG_ODDS) - 2))
+        left, mid, right = post[k - 1 : k + 2]
+        bend = left - 2.0 * mid + right
+        shift = 0.5 * (left - right) / bend if bend < 0 else 0.0
+        step = LOG_ODDS[1] - LOG_ODDS[0]
+        return float(np.exp(LOG_ODDS[k] + np.clip(shift, -1.0, 1.0) * step))
 
     def state(self) -> tuple[str, float, tuple[tuple[float, int], ...]]:
         """For snapshots."""
@@ -109,27 +118,10 @@ class ReturnRate:
         self._tracks.clear()
         if state[0] != "odds":
             share = float(state[0])
-            self.odds = float(np.clip(share / max(1.0 - share, 1e-9), *ODDS_BOUNDS))
+            self.odds = float(np.clip(share / max(1.0 - share, 1e-9), *np.exp(LOG_ODDS[[0, -1]])))
             return
         self.odds = float(state[1])
         self._tracks.extend(state[2])
-
-
-def _solve_odds(returns: float, candidates: np.ndarray) -> float:
-    r"""The M-step: ``rho`` with ``sum_i N_i rho / (1 + N_i rho) = returns``.
-
-    The left side grows from 0 to the number of tracks with ``rho``, so the root is
-    unique; bisection on ``log rho``.
-    """
-    lo, hi = np.log(ODDS_BOUNDS[0]), np.log(ODDS_BOUNDS[1])
-    for _ in range(BISECTION_STEPS):
-        mid = 0.5 * (lo + hi)
-        x = candidates * np.exp(mid)
-        if (x / (1.0 + x)).sum() < returns:
-            lo = mid
-        else:
-            hi = mid
-    return float(np.exp(0.5 * (lo + hi)))
 
 
 def link_posterior(mean_llr: np.ndarray, odds: float) -> np.ndarray:
