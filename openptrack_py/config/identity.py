@@ -95,11 +95,11 @@ class IdentityConfig(StrictModel):
         pooled identity.
     reid_min_posterior : float
         Least probability that the track is the pooled identity, given its evidence
-        against every pooled identity it could be and the odds that a new track is a
-        given absent person rather than a stranger, estimated online
-        (:mod:`~openptrack_py.tracking.identity.returns`): the more look-alikes in the
-        pool and the rarer returns are at the site, the more evidence a link needs. 0.5
-        is the Bayes decision when a wrong link costs as much as a missed one.
+        against every pooled identity it could be and the share of new tracks that turn
+        out to be returns, estimated online (:mod:`~openptrack_py.tracking.identity.returns`):
+        the more look-alikes in the pool and the rarer returns are at the site, the more
+        evidence a link needs. 0.5 is the Bayes decision when a wrong link costs as much
+        as a missed one.
     unlink_evidence : float
         A link is undone when the mean falls to this (later observations contradict
         it), and the identity returns to the pool.

@@ -765,7 +765,7 @@ class AppearanceIdentity:
         rival_col = np.where(ev >= top_col, second_col, top_col)
         qualifies = (
             (ev >= cfg.reid_mean_llr)
-            & (link_posterior(raw, self.returns.odds) >= cfg.reid_min_posterior)
+            & (link_posterior(raw, self.returns.rate) >= cfg.reid_min_posterior)
             & (ev - rival_col >= cfg.reid_margin)
         )
         if qualifies.any():

@@ -1,37 +1,25 @@
 r"""How likely a new track is someone from the pool: the prior of re-identification.
 
-A young track is either a stranger or one of the ``N`` pooled identities it could have
+A young track is either a stranger or one of the pooled identities it could have
 walked to. Its appearance evidence against pooled identity ``j`` is a likelihood ratio
-``L_j`` ("this pooled person" against "someone else"). Each person who left may come
-back, so the chance that a new track is a return grows with the number of people who
-could be returning: with the odds ``\rho`` of one given pooled person against a
-stranger (a return hazard per absent person over an arrival rate of strangers), the
-prior of identity ``j`` is ``\rho / (1 + N \rho)`` and of a stranger ``1 / (1 + N
-\rho)``, and Bayes gives
+``L_j`` ("this pooled person" against "someone else"). With a share ``r`` of new tracks
+being returns, spread evenly over the ``N`` reachable pooled identities, Bayes gives
 
 .. math::
 
-    P(j \mid \text{evidence}) = \frac{\rho L_j}{1 + \rho \sum_k L_k} .
+    P(j \mid \text{evidence}) = \frac{r L_j / N}{(1 - r) + r \bar L},
+    \qquad \bar L = \frac{1}{N} \sum_k L_k .
 
-So the evidence one link needs grows with the number of look-alike candidates (among
-twenty people in dark clothes, one that looks alike is no surprise) and with how rarely
-people come back. ``\rho`` is a property of the site, not of the tracker: an
-exhibition's visitors rarely return, a classroom's children always do.
-:class:`ReturnRate` estimates it online from the young tracks seen so far, as the
-proportion of a two-component mixture (stranger, return) whose components' likelihood
-ratios are known and whose proportion is not (the same mixture-proportion estimate as
-the share of true nulls in the false discovery rate literature, here with a proportion
-that depends on each track's candidates). With ``S = \sum_k L_k`` a track's evidence
-has likelihood ``(1 + \rho S) / (1 + \rho N)`` up to a factor free of ``\rho``; the
-estimate maximises their product times a prior of one return and one stranger among
-single candidates (so a handful of tracks cannot drive it to 0 or infinity).
-
-Why odds per pooled person and not one share of returns among new tracks: the first
-people of a session all arrive as strangers, while hardly anyone has left yet; a share
-learned from them says returns are rare, and a person who comes back once the room
-has emptied then needs far more evidence than their look gives. The odds learned from
-the same strangers, each met by a pool of one or two, still expect a return when
-seven people are out.
+So the evidence one link needs grows with the number of candidates (among twenty people
+in dark clothes, one that looks alike is no surprise) and with how rarely people come
+back. ``r`` is a property of the site, not of the tracker: an exhibition's visitors
+rarely return, a classroom's children always do. :class:`ReturnRate` estimates it
+online from the young tracks seen so far by expectation-maximisation over the
+two-component mixture (stranger, return) whose components' likelihood ratios are known
+and whose proportion is not: each track's ``\bar L`` gives its responsibility
+``r \bar L / ((1 - r) + r \bar L)``, and ``r`` is their mean, with a Beta(2, 2) prior so
+a handful of tracks cannot drive it to 0 or 1. The same mixture-proportion estimate
+appears in the false discovery rate literature (the share of true nulls).
 """
 
 from __future__ import annotations
@@ -41,20 +29,14 @@ from collections import deque
 import numpy as np
 
 MEMORY = 100
-"""Young tracks the return odds are estimated from (the most recent)."""
-PRIOR_RETURNS = 1.0
-"""Pseudo-tracks in the prior: this many returns and as many strangers, one candidate each."""
-LOG_ODDS = np.linspace(np.log(1e-4), np.log(1e4), 369)
-"""Where the posterior of the odds is evaluated (steps of 0.05 in ``log rho``)."""
+"""Young tracks the return rate is estimated from (the most recent)."""
+PRIOR = (2.0, 2.0)
+"""Beta prior on the return rate: one return and one stranger seen before any track."""
+EM_STEPS = 25
 
 
 class ReturnRate:
-    """Online estimate of the odds that a new track is a given pooled person.
-
-    Attributes
-    ----------
-    odds : float
-        ``rho``: the prior odds of one pooled identity against a stranger.
+    """Online estimate of the share of new tracks that are returning people.
 
     Parameters
     ----------
@@ -63,68 +45,43 @@ class ReturnRate:
     """
 
     def __init__(self, memory: int = MEMORY) -> None:
-        self._tracks: deque[tuple[float, int]] = deque(maxlen=memory)
-        self.odds = self._estimate()
-
-    def rate(self, candidates: int) -> float:
-        """Prior share of returns among new tracks with ``candidates`` pooled people in reach."""
-        return candidates * self.odds / (1.0 + candidates * self.odds)
+        self._mean_lr: deque[float] = deque(maxlen=memory)
+        self.rate = self._estimate(0.5)
 
     def add(self, llrs: np.ndarray) -> None:
         """One young track's settled evidence: mean log-likelihood ratio per candidate.
 
         A track with no candidate (nobody in the pool could have walked there) tells
-        nothing about the odds and is skipped.
+        nothing about the rate and is skipped.
         """
         llrs = np.asarray(llrs, dtype=float)
         llrs = llrs[np.isfinite(llrs)]
         if not len(llrs):
             return
-        self._tracks.append((float(np.exp(llrs).sum()), len(llrs)))
-        self.odds = self._estimate()
+        self._mean_lr.append(float(np.exp(llrs).mean()))
+        self.rate = self._estimate(self.rate)
 
-    def _estimate(self) -> float:
-        """The odds of highest posterior, over :data:`LOG_ODDS` refined by a parabola.
+    def _estimate(self, start: float) -> float:
+        a, b = PRIOR
+        m = np.array(self._mean_lr)
+        r = start
+        for _ in range(EM_STEPS):
+            resp = r * m / ((1.0 - r) + r * m)
+            r = (resp.sum() + a - 1.0) / (len(m) + a + b - 2.0)
+        return float(r)
 
-        The log posterior of ``rho`` is ``sum_i [log(1 + rho S_i) - log(1 + rho N_i)]``
-        plus the prior's ``log rho - 2 log(1 + rho)``; evaluated on the whole grid at
-        once it has no local optimum to stop at.
-        """
-        total, candidates = np.array(self._tracks, dtype=float).reshape(-1, 2).T
-        rho = np.exp(LOG_ODDS)
-        post = (
-            np.log1p(rho[:, None] * total).sum(axis=1)
-            - np.log1p(rho[:, None] * candidates).sum(axis=1)
-            + PRIOR_RETURNS * (LOG_ODDS - 2.0 * np.log1p(rho))
-        )
-        k = int(np.clip(np.argmax(post), 1, len(LOG_ODDS) - 2))
-        left, mid, right = post[k - 1 : k + 2]
-        bend = left - 2.0 * mid + right
-        shift = 0.5 * (left - right) / bend if bend < 0 else 0.0
-        step = LOG_ODDS[1] - LOG_ODDS[0]
-        return float(np.exp(LOG_ODDS[k] + np.clip(shift, -1.0, 1.0) * step))
-
-    def state(self) -> tuple[str, float, tuple[tuple[float, int], ...]]:
+    def state(self) -> tuple[float, tuple[float, ...]]:
         """For snapshots."""
-        return "odds", self.odds, tuple(self._tracks)
+        return self.rate, tuple(self._mean_lr)
 
-    def restore(self, state: tuple) -> None:
-        """Return to a :meth:`state`.
-
-        A state saved before the odds were per pooled person holds a share of returns
-        and one number per track: the share becomes odds against one candidate and the
-        history is dropped.
-        """
-        self._tracks.clear()
-        if state[0] != "odds":
-            share = float(state[0])
-            self.odds = float(np.clip(share / max(1.0 - share, 1e-9), *np.exp(LOG_ODDS[[0, -1]])))
-            return
-        self.odds = float(state[1])
-        self._tracks.extend(state[2])
+    def restore(self, state: tuple[float, tuple[float, ...]]) -> None:
+        """Return to a :meth:`state`."""
+        self.rate = state[0]
+        self._mean_lr.clear()
+        self._mean_lr.extend(state[1])
 
 
-def link_posterior(mean_llr: np.ndarray, odds: float) -> np.ndarray:
+def link_posterior(mean_llr: np.ndarray, rate: float) -> np.ndarray:
     """Probability that each candidate track is each pooled identity.
 
     Parameters
@@ -133,8 +90,8 @@ def link_posterior(mean_llr: np.ndarray, odds: float) -> np.ndarray:
         ``(C, P)`` mean log-likelihood ratio of each young track's observations against
         each pooled identity; ``-inf`` where the track could not be that person (out of
         reach, no evidence).
-    odds : float
-        Prior odds of one pooled identity against a stranger (:class:`ReturnRate`).
+    rate : float
+        Prior share of new tracks that are returns (:class:`ReturnRate`).
 
     Returns
     -------
@@ -143,4 +100,7 @@ def link_posterior(mean_llr: np.ndarray, odds: float) -> np.ndarray:
         most 1 (the rest is "a stranger").
     """
     lr = np.exp(mean_llr)
-    return odds * lr / (1.0 + odds * lr.sum(axis=1, keepdims=True))
+    reachable = np.isfinite(mean_llr).sum(axis=1, keepdims=True)
+    n = np.maximum(reachable, 1)
+    mean = lr.sum(axis=1, keepdims=True) / n
+    return rate * lr / n / ((1.0 - rate) + rate * mean)
