@@ -211,3 +211,22 @@ def test_a_bad_endpoint_flag_is_a_config_error_naming_it(flag: str) -> None:
     args = parser.parse_args([flag, "tcp/127.0.0.1:"])
     with pytest.raises(ConfigError, match=r"(?s)zenoh flags \(-e, -l\).*port must be a number"):
         zenoh_from_args(ZenohConfig(), args)
+
+
+def test_a_node_stopped_while_it_joins_the_network_stops_cleanly(
+    monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C (or a launcher's stop) before the node's own handlers are installed, while
+    its session settles on a slow machine: a clean stop, exit 0, no traceback."""
+    from openptrack_py.runtime import entry
+
+    def interrupted(*_args: object, **_kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(entry, "bus_from_args", interrupted)
+    parser = entry.node_parser("openptrack node sim", "a node")
+    body_ran = []
+    code = entry.run_node("sim", parser, lambda *a: body_ran.append(a), [])
+    assert code == entry.EXIT_OK and not body_ran
+    out, err = capfd.readouterr()
+    assert "INFO sim: stopped" in out + err and "Traceback" not in out + err

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from collections.abc import Callable, Sequence
 
@@ -84,4 +85,8 @@ def run_node(
     except ConfigError as exc:
         print(f"{parser.prog}: {exc}", file=sys.stderr)
         return EXIT_CONFIG
+    except KeyboardInterrupt:  # stopped while joining the network, before its handlers
+        logging.getLogger(f"openptrack.{name}").info(
+            "stopped", extra={"fields": {"during": "start-up"}}
+        )
     return EXIT_OK
