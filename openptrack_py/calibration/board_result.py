@@ -17,6 +17,7 @@ import numpy as np
 from openptrack_py.calibration.files import CameraIntrinsics, SensorCalibration
 from openptrack_py.config import Pose
 from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.detection.lens import LENS_TERMS
 from openptrack_py.geometry import pose_from_transform
 
 __all__ = ["FOCAL_SD_WARN", "CalibrationReport", "ExtrinsicCalibration"]
@@ -58,11 +59,12 @@ class CalibrationReport:
         Whether every sensor's intrinsics were solved with the poses.
     intrinsics_sd : dict
         Per sensor, when refined: standard deviations of ``fx, fy, cx, cy`` (pixels) and
-        ``k1, k2``. A few views, or views all at one distance, leave the focal length
-        and the centre poorly determined, and the poses with them.
+        of the lens terms solved (``k1, k2``, then ``p1, p2, k3``). A few views, or
+        views all at one distance, leave the focal length and the centre poorly
+        determined, and the poses with them.
     distortion_px : dict
-        Per sensor, when refined: how far its radial distortion moves the farthest
-        corner it saw from the image centre, pixels.
+        Per sensor, when refined: how far its distortion moves a corner it saw, at most,
+        pixels.
     """
 
     reference: str
@@ -113,7 +115,7 @@ class ExtrinsicCalibration:
     report : CalibrationReport
         Residuals, counts and solver figures.
     intrinsics : dict
-        Per sensor id, its refined camera model, pinhole and radial distortion (empty
+        Per sensor id, its refined camera model, pinhole and lens distortion (empty
         unless ``refine_intrinsics``).
     """
 
@@ -124,11 +126,11 @@ class ExtrinsicCalibration:
 
     @property
     def distortion(self) -> dict[str, tuple[float, ...]]:
-        """OpenCV distortion coefficients per sensor with refined intrinsics.
+        """OpenCV distortion coefficients ``(k1, k2, p1, p2, k3)`` per refined sensor.
 
-        ``(k1, k2, 0, 0)``: radial only, as the calibration file writes them.
+        As the calibration file writes them.
         """
-        return {s: (k.k1, k.k2, 0.0, 0.0) for s, k in self.intrinsics.items()}
+        return {s: k.distortion for s, k in self.intrinsics.items()}
 
     def poses(self) -> dict[str, Pose]:
         """Every sensor's pose as a network file writes it."""
@@ -176,7 +178,7 @@ class ExtrinsicCalibration:
             )
             if not np.isfinite(corners_x).all():
                 out.append(
-                    f"{sid}: the fitted lens distortion (k1 {k.k1:.3f}, k2 {k.k2:.3f}) cannot be "
+                    f"{sid}: the fitted lens distortion ({_terms(k)}) cannot be "
                     "inverted at the image's corners, where the detector will see nothing: "
                     "add placements towards the image's edges"
                 )
@@ -189,5 +191,11 @@ class ExtrinsicCalibration:
             return None
         return CameraIntrinsics(
             width=k.width, height=k.height, fx=k.fx, fy=k.fy, cx=k.cx, cy=k.cy,
-            distortion=(k.k1, k.k2, 0.0, 0.0),
+            distortion=k.distortion,
         )  # fmt: skip
+
+
+def _terms(k: Intrinsics) -> str:
+    """The lens terms of ``k`` that are not 0, for a message."""
+    terms = zip(LENS_TERMS, k.distortion, strict=True)
+    return ", ".join(f"{name} {value:.3f}" for name, value in terms if value)

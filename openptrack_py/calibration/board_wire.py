@@ -9,7 +9,7 @@ A report says, for one frame: where the board's inner corners are in the image (
 it is not seen); the still view the frame completed, if any (a run of frames in which
 the board was held still, its corners averaged and its pose in the camera, see
 :class:`~openptrack_py.calibration.capture.StillBoardViews`); the sensor's intrinsics
-(with its radial lens terms ``k1``, ``k2`` when not 0) and the board it looks for with
+(with its lens terms ``k1, k2, p1, p2, k3`` when one is not 0) and the board it looks for with
 every completed view; and ``end`` when the sensor's
 source ran out.
 
@@ -28,6 +28,7 @@ import numpy as np
 
 from openptrack_py.calibration.observations import BoardObservation
 from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.detection.lens import LENS_TERMS
 from openptrack_py.errors import ConfigError, WireFormatError
 from openptrack_py.messages.fields import (
     MAX_STAMP_S,
@@ -58,9 +59,9 @@ _KEYS = frozenset(
     {"v", "kind", "sensor_id", "stamp", "corners", "view", "intrinsics", "board", "end"}
 )
 _VIEW_KEYS = frozenset({"stamp", "corners", "camera_from_board"})
-_INTRINSIC_KEYS = frozenset({"width", "height", "fx", "fy", "cx", "cy", "k1", "k2"})
-MAX_RADIAL = 10.0
-"""Largest radial distortion term a report may carry (real lenses: well under 1)."""
+_INTRINSIC_KEYS = frozenset({"width", "height", "fx", "fy", "cx", "cy", *LENS_TERMS})
+MAX_LENS_TERM = 10.0
+"""Largest lens distortion term a report may carry (real lenses: well under 1)."""
 
 
 @dataclass(frozen=True)
@@ -129,8 +130,8 @@ def encode_board_report(report: BoardReport) -> bytes:
         k = report.intrinsics
         obj["intrinsics"] = {"width": k.width, "height": k.height, "fx": k.fx, "fy": k.fy,
                              "cx": k.cx, "cy": k.cy}  # fmt: skip
-        if k.k1 or k.k2:  # the lens, when the camera reports one (optional on the wire)
-            obj["intrinsics"].update(k1=k.k1, k2=k.k2)
+        if k.has_lens:  # the lens, when the camera reports one (optional on the wire)
+            obj["intrinsics"].update(zip(LENS_TERMS, k.distortion, strict=True))
     if report.board is not None:
         rows, cols, square = report.board
         if not (math.isfinite(square) and square > 0):
@@ -188,18 +189,17 @@ def _read_intrinsics(obj: dict) -> Intrinsics:
             fy=read_float(obj, "fy", "intrinsics."),
             cx=read_float(obj, "cx", "intrinsics."),
             cy=read_float(obj, "cy", "intrinsics."),
-            k1=_radial(obj, "k1"),
-            k2=_radial(obj, "k2"),
+            **{name: _lens_term(obj, name) for name in LENS_TERMS},
         )
     except ConfigError as exc:
         raise WireFormatError(str(exc)) from None
 
 
-def _radial(obj: dict, key: str) -> float:
-    """An optional radial distortion term (0 when absent)."""
+def _lens_term(obj: dict, key: str) -> float:
+    """An optional lens distortion term (0 when absent)."""
     if key not in obj:
         return 0.0
-    return read_float(obj, key, "intrinsics.", -MAX_RADIAL, MAX_RADIAL)
+    return read_float(obj, key, "intrinsics.", -MAX_LENS_TERM, MAX_LENS_TERM)
 
 
 def _read_board(obj: dict) -> tuple[int, int, float]:

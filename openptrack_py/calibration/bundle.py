@@ -3,8 +3,9 @@
 Step 4 of the checkerboard calibration of Munaro et al., OpenPTrack (§4), refined as in
 bundle adjustment (Triggs et al., "Bundle Adjustment — A Modern Synthesis"; as Kalibr
 and multical do): :class:`BundleProblem` holds the unknowns (6 per non-reference sensor,
-6 per placement and, when asked, 6 intrinsics per sensor: focal lengths, principal point
-and two radial distortion terms), the residuals (projected minus observed corners, and
+6 per placement and, when asked, 6 or 9 intrinsics per sensor: focal lengths, principal
+point and two radial distortion terms, or OpenCV's five radial and tangential ones), the
+residuals (projected minus observed corners, and
 a weak prior on the intrinsics) and the Jacobian's sparsity; :func:`solve` runs
 ``scipy.optimize.least_squares`` with a Huber loss and Jacobian-scaled variables;
 :func:`view_outliers` and :func:`corner_outliers` name the views and corners to reject
@@ -22,10 +23,13 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.detection.lens import distort
 from openptrack_py.geometry import invert
 
 __all__ = [
+    "INTRINSIC_NAMES",
     "INTRINSIC_PRIOR",
+    "LENS_MODELS",
     "BundleProblem",
     "corner_outliers",
     "huber_cost",
@@ -33,12 +37,22 @@ __all__ = [
     "view_outliers",
 ]
 
-INTRINSIC_PRIOR = (0.05, 0.05, 0.05, 0.05, 0.1, 0.1)
+INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
+"""A camera's intrinsics in the order the problem holds them (the lens in OpenCV's)."""
+
+LENS_MODELS = {"radial": 6, "full": 9}
+"""Lens models the solve offers, with how many of :data:`INTRINSIC_NAMES` each solves:
+``radial`` the pinhole and ``k1, k2``; ``full`` also the tangential ``p1, p2`` and
+``k3``, OpenCV's five-term model (for a lens with visible decentering or strong
+barrel distortion, from many placements reaching the image's corners)."""
+
+INTRINSIC_PRIOR = (0.05, 0.05, 0.05, 0.05, 0.1, 0.1, 0.01, 0.01, 0.1)
 """Standard deviations of the weak prior on refined intrinsics, about the given ones:
 ``fx``, ``fy`` as a fraction of the given focal length, ``cx``, ``cy`` as a fraction of
-the image's width and height, and the radial terms ``k1``, ``k2`` (absolute): wide
-enough for a unit whose focal length and centre are a few percent off its type's, and
-for the few percent of distortion of a depth camera's lens. The prior matters where the
+the image's width and height, and the lens terms ``k1, k2, p1, p2, k3`` (absolute):
+wide enough for a unit whose focal length and centre are a few percent off its type's,
+for the few percent of distortion of a depth camera's lens and for a decentering of a
+few thousandths (the tangential terms OpenCV fits to real lenses). The prior matters where the
 views say little (a sensor with few views, all at one distance); the report's standard
 deviations of the refined intrinsics say when they do
 (:meth:`BundleProblem.intrinsics_sd`)."""
@@ -65,7 +79,7 @@ class BundleProblem:
     """Joint refinement of sensor and board poses by corner reprojection error.
 
     Unknowns, 6 per non-reference sensor then 6 per placement (then, with
-    ``refine_intrinsics``, 6 per sensor): a sensor's orientation in the reference frame
+    ``refine_intrinsics``, 6 or 9 per sensor): a sensor's orientation in the reference frame
     (rotation vector of ``ref_from_camera``) and its optical centre there; a board's
     orientation (of ``ref_from_board``) and its centre. Positions of centres rather than
     the translations of the transforms keep rotations and translations nearly
@@ -89,11 +103,13 @@ class BundleProblem:
     masks : sequence of ndarray, optional
         Per view, ``(n,)`` bool: the corners used (rejected corners' residuals are 0).
     refine_intrinsics : bool
-        Also solve every sensor's ``fx, fy, cx, cy`` and radial distortion ``k1, k2`` (of
-        the given pixels: ``x' = x (1 + k1 r^2 + k2 r^4)`` on the normalised image
-        plane), 6 unknowns per sensor after the placements', started from the given
-        intrinsics and no distortion, under the weak prior :data:`INTRINSIC_PRIOR`
-        (6 more residuals per sensor, after the corners').
+        Also solve every sensor's ``fx, fy, cx, cy`` and lens distortion (of the given
+        pixels, :mod:`openptrack_py.detection.lens`), 6 or 9 unknowns per sensor after
+        the placements' (``lens``), started from the given intrinsics and no
+        distortion, under the weak prior :data:`INTRINSIC_PRIOR` (as many more residuals
+        per sensor, after the corners').
+    lens : {"radial", "full"}
+        The lens terms solved with ``refine_intrinsics`` (:data:`LENS_MODELS`).
     """
 
     def __init__(
@@ -105,7 +121,10 @@ class BundleProblem:
         placements: int,
         masks: Sequence[np.ndarray] | None = None,
         refine_intrinsics: bool = False,
+        lens: str = "radial",
     ) -> None:
+        if lens not in LENS_MODELS:
+            raise ValueError(f"lens: {lens!r} is not one of {', '.join(LENS_MODELS)}")
         self.object_points = np.asarray(object_points, dtype=float)
         self._board_centre = self.object_points.mean(axis=0)
         self._centred = self.object_points - self._board_centre
@@ -123,10 +142,12 @@ class BundleProblem:
         )
         k = np.array([[i.fx, i.fy, i.cx, i.cy] for i in intrinsics])
         self.refine_intrinsics = refine_intrinsics
+        self.lens = lens
+        self.n_intrinsics = LENS_MODELS[lens] if refine_intrinsics else 0
         self.image_sizes = [(i.width, i.height) for i in intrinsics]
-        self.given = np.hstack([k, np.zeros((len(k), 2))])  # (sensors, 6) with k1 = k2 = 0
-        size = np.array([[i.fx, i.fy, i.width, i.height, 1.0, 1.0] for i in intrinsics])
-        self._prior_sigma = size * np.array(INTRINSIC_PRIOR)
+        self.given = np.hstack([k, np.zeros((len(k), 5))])  # (sensors, 9), no distortion
+        size = np.array([[i.fx, i.fy, i.width, i.height] + [1.0] * 5 for i in intrinsics])
+        self._prior_sigma = (size * np.array(INTRINSIC_PRIOR))[:, : self.n_intrinsics]
         # Parameter block of each sensor (-1 for the reference).
         order = [s for s in range(self.sensors) if s != reference]
         self.sensor_block = np.full(self.sensors, -1, dtype=int)
@@ -145,13 +166,15 @@ class BundleProblem:
     @property
     def n_params(self) -> int:
         """Number of unknowns (the poses', then the intrinsics' if refined)."""
-        return self.n_pose_params + (6 * self.sensors if self.refine_intrinsics else 0)
+        return self.n_pose_params + self.n_intrinsics * self.sensors
 
     def intrinsics(self, x: np.ndarray) -> np.ndarray:
-        """``(sensors, 6)``: each sensor's ``fx, fy, cx, cy, k1, k2`` at ``x``."""
+        """``(sensors, 9)``: each sensor's :data:`INTRINSIC_NAMES` at ``x``."""
         if not self.refine_intrinsics:
             return self.given
-        return x[self.n_pose_params :].reshape(self.sensors, 6)
+        out = self.given.copy()
+        out[:, : self.n_intrinsics] = x[self.n_pose_params :].reshape(self.sensors, -1)
+        return out
 
     def pack(
         self,
@@ -161,7 +184,7 @@ class BundleProblem:
     ) -> np.ndarray:
         """Parameter vector of ``(sensors, 4, 4)`` and ``(placements, 4, 4)`` poses.
 
-        With refined intrinsics, ``intrinsics`` ``(sensors, 6)`` starts them (the given
+        With refined intrinsics, ``intrinsics`` ``(sensors, 9)`` starts them (the given
         ones and no distortion if omitted).
         """
         blocks = []
@@ -173,7 +196,8 @@ class BundleProblem:
             centre = pose[:3, :3] @ self._board_centre + pose[:3, 3]
             blocks.append(_to_params(pose[:3, :3], centre))
         if self.refine_intrinsics:
-            blocks.append((self.given if intrinsics is None else intrinsics).ravel())
+            start = self.given if intrinsics is None else intrinsics
+            blocks.append(start[:, : self.n_intrinsics].ravel())
         return np.concatenate([np.zeros(0), *blocks])
 
     def _rotations(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -211,27 +235,26 @@ class BundleProblem:
             u = k[:, None, 0] * cam_pts[..., 0] / z + k[:, None, 2]
             v = k[:, None, 1] * cam_pts[..., 1] / z + k[:, None, 3]
             return np.stack([u, v], axis=-1)
-        xn, yn = cam_pts[..., 0] / z, cam_pts[..., 1] / z
-        r2 = xn * xn + yn * yn
-        radial = 1.0 + k[:, None, 4] * r2 + k[:, None, 5] * r2 * r2
-        u = k[:, None, 0] * xn * radial + k[:, None, 2]
-        v = k[:, None, 1] * yn * radial + k[:, None, 3]
+        xn, yn = distort(cam_pts[..., 0] / z, cam_pts[..., 1] / z, k[:, None, 4:])
+        u = k[:, None, 0] * xn + k[:, None, 2]
+        v = k[:, None, 1] * yn + k[:, None, 3]
         return np.stack([u, v], axis=-1)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Projected minus observed pixels, flattened view by view, corner by corner.
 
         Rejected corners (see ``masks``) give zeros. With refined intrinsics, the prior's
-        residuals follow, 6 per sensor.
+        residuals follow, one per solved intrinsic.
         """
         corners = ((self.project(x) - self.observed) * self.mask[..., None]).ravel()
         if not self.refine_intrinsics:
             return corners
-        prior = PRIOR_PX * (self.intrinsics(x) - self.given) / self._prior_sigma
+        solved = slice(0, self.n_intrinsics)
+        prior = PRIOR_PX * (self.intrinsics(x) - self.given)[:, solved] / self._prior_sigma
         return np.concatenate([corners, prior.ravel()])
 
     def intrinsics_sd(self, x: np.ndarray) -> np.ndarray:
-        """``(sensors, 6)``: standard deviations of the refined intrinsics at ``x``.
+        """``(sensors, solved)``: standard deviations of the refined intrinsics at ``x``.
 
         From the Gauss-Newton covariance ``(J'J)^-1`` of the whitened residuals (``J`` by
         forward differences): the corners' rows divided by their measured scatter per
@@ -240,7 +263,7 @@ class BundleProblem:
         large one, at most its prior's. Zeros when the intrinsics are not refined.
         """
         if not self.refine_intrinsics:
-            return np.zeros((self.sensors, 6))
+            return np.zeros((self.sensors, 0))
         base = self.residuals(x)
         jac = np.empty((len(base), self.n_params))
         for j in range(self.n_params):
@@ -256,13 +279,13 @@ class BundleProblem:
         jac[n:] /= PRIOR_PX
         cov = np.linalg.pinv(jac.T @ jac)
         sd = np.sqrt(np.maximum(np.diag(cov)[self.n_pose_params :], 0.0))
-        return sd.reshape(self.sensors, 6)
+        return sd.reshape(self.sensors, self.n_intrinsics)
 
     def distortion_px(self, x: np.ndarray) -> np.ndarray:
-        """``(sensors,)``: how far the radial distortion moves the farthest corner seen.
+        """``(sensors,)``: how far the distortion moves a corner seen, at most.
 
-        Pixels, at the largest radius from the image centre among each sensor's used
-        corners (beyond them the fitted terms say nothing); zeros when not refined.
+        Pixels, the largest over each sensor's used corners (beyond them the fitted
+        terms say nothing); zeros when not refined.
         """
         out = np.zeros(self.sensors)
         if not self.refine_intrinsics:
@@ -275,9 +298,8 @@ class BundleProblem:
             pix = self.observed[mine][self.mask[mine]]
             xn = (pix[:, 0] - k[s, 2]) / k[s, 0]
             yn = (pix[:, 1] - k[s, 3]) / k[s, 1]
-            r2 = float((xn * xn + yn * yn).max())
-            focal = 0.5 * (k[s, 0] + k[s, 1])
-            out[s] = abs(k[s, 4] * r2 + k[s, 5] * r2 * r2) * math.sqrt(r2) * focal
+            xd, yd = distort(xn, yn, k[s, 4:])
+            out[s] = float(np.hypot((xd - xn) * k[s, 0], (yd - yn) * k[s, 1]).max())
         return out
 
     def view_errors(self, x: np.ndarray) -> np.ndarray:
@@ -293,7 +315,7 @@ class BundleProblem:
         """Which residuals depend on which parameters (``least_squares``' ``jac_sparsity``).
 
         A view's residuals depend on its sensor's 6 pose parameters (none for the
-        reference), its placement's 6 and, when refined, its sensor's 6 intrinsics; each
+        reference), its placement's 6 and, when refined, its sensor's intrinsics; each
         prior residual on one intrinsic alone.
         """
         n_res = 2 * self.object_points.shape[0]
@@ -304,13 +326,14 @@ class BundleProblem:
             if self.sensor_block[s] >= 0:
                 blocks.append(6 * self.sensor_block[s] + np.arange(6))
             if self.refine_intrinsics:
-                blocks.append(self.n_pose_params + 6 * s + np.arange(6))
+                m = self.n_intrinsics
+                blocks.append(self.n_pose_params + m * s + np.arange(m))
             c = np.concatenate(blocks)
             rows.append(np.repeat(r, len(c)))
             cols.append(np.tile(c, len(r)))
         n_rows = n_res * len(self.view_sensor)
         if self.refine_intrinsics:
-            k = np.arange(6 * self.sensors)
+            k = np.arange(self.n_intrinsics * self.sensors)
             rows.append(n_rows + k)
             cols.append(self.n_pose_params + k)
             n_rows += len(k)

@@ -462,8 +462,8 @@ def detect_board(
     corners = detect_corners(detection_image(frame, sensor_type), board)
     if corners is None:
         return None
-    if distortion is None and (k.k1 or k.k2):  # the camera model's own lens
-        distortion = np.array([k.k1, k.k2, 0.0, 0.0])
+    if distortion is None and k.has_lens:  # the camera model's own lens
+        distortion = np.array(k.distortion)
     view = board_pose(undistort_corners(corners, k, distortion), board, k)
     return view if view.rms_px <= max_rms_px else None
 

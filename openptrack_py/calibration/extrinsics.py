@@ -26,7 +26,7 @@ Steps of :func:`calibrate_extrinsics`, each in its own module:
    fixed, which fixes the gauge; the board's size fixes the scale) and per placement,
    minimising pixel reprojection error of every corner with a Huber loss, a sparse
    Jacobian (a view's residuals depend only on its sensor and its placement) and
-   Jacobian-scaled variables; optionally every sensor's pinhole and radial distortion
+   Jacobian-scaled variables; optionally every sensor's pinhole and lens distortion
    too (``refine_intrinsics``: a unit's intrinsics differ from its type's nominal ones,
    and a focal length 2 % off puts a board 2 % too far, which the poses absorb). Then
    outliers go, one at a time per placement and per
@@ -57,7 +57,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from openptrack_py.calibration.board_result import CalibrationReport, ExtrinsicCalibration
-from openptrack_py.calibration.bundle import BundleProblem, corner_outliers, solve, view_outliers
+from openptrack_py.calibration.bundle import (
+    LENS_MODELS,
+    BundleProblem,
+    corner_outliers,
+    solve,
+    view_outliers,
+)
 from openptrack_py.calibration.observations import (
     BoardObservation,
     Placement,
@@ -146,6 +152,7 @@ def calibrate_extrinsics(
     reject_px: float = 1.0,
     max_evaluations: int = 200,
     refine_intrinsics: bool = False,
+    lens: str = "radial",
 ) -> ExtrinsicCalibration:
     """Every sensor's pose from checkerboard views (Munaro et al., OpenPTrack, §4).
 
@@ -182,10 +189,11 @@ def calibrate_extrinsics(
     max_evaluations : int
         Cap on residual evaluations per solve.
     refine_intrinsics : bool
-        Also solve every sensor's focal lengths, principal point and radial distortion
-        (``k1``, ``k2``) with the poses, from ``intrinsics`` and no distortion, under a
-        weak prior (:data:`~openptrack_py.calibration.bundle.INTRINSIC_PRIOR`); the
-        corners should then be raw, not undistorted.
+        Also solve every sensor's focal lengths, principal point and lens distortion with
+        the poses, from ``intrinsics`` and no distortion, under a weak prior (the corners
+        should then be raw, not undistorted).
+    lens : {"radial", "full"}
+        The lens terms solved: ``k1, k2`` or OpenCV's five (:mod:`.bundle`'s ``LENS_MODELS``).
 
     Returns
     -------
@@ -201,9 +209,8 @@ def calibrate_extrinsics(
     object_points = np.asarray(object_points, dtype=float)
     check_observations(observations, intrinsics, len(object_points))
     ref = _reference(reference, sensor_ids)
-    settings = _Settings(
-        tolerance_s, min_shared_views, huber_px, reject_px, max_evaluations, refine_intrinsics
-    )
+    settings = _Settings(tolerance_s, min_shared_views, huber_px, reject_px, max_evaluations,
+                         refine_intrinsics, lens)  # fmt: skip
     fit = _fit(list(observations), intrinsics, object_points, ref, settings)
     floor_pose = FLOOR_BOARD_IN_WORLD if world_from_floor_board is None else world_from_floor_board
     world_from_ref, frame = _world_from_ref(
@@ -295,7 +302,15 @@ class _Settings:
     reject_px: float
     max_evaluations: int
     refine_intrinsics: bool = False
+    lens: str = "radial"
     max_rounds: int = 25
+
+    def __post_init__(self) -> None:
+        if self.lens not in LENS_MODELS:
+            raise CalibrationError(
+                f"checkerboard calibration: lens {self.lens!r} is not one of "
+                f"{', '.join(LENS_MODELS)}"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -335,7 +350,7 @@ def _fit(
             )
         problem, flat = _problem(
             observations, placements, masks, intrinsics, object_points, reference,
-            settings.refine_intrinsics,
+            settings.refine_intrinsics, settings.lens,
         )  # fmt: skip
         x0 = problem.pack(
             np.stack([cam_from_ref[s] for s in sensor_ids]),
@@ -367,6 +382,7 @@ def _problem(
     object_points: np.ndarray,
     reference: str,
     refine_intrinsics: bool = False,
+    lens: str = "radial",
 ) -> tuple[BundleProblem, list[int]]:
     """One round's bundle problem, and the index in ``observations`` of each of its views."""
     sensor_ids = list(intrinsics)
@@ -379,7 +395,7 @@ def _problem(
     ]
     problem = BundleProblem(
         object_points, [intrinsics[s] for s in sensor_ids], index[reference], views,
-        len(placements), [masks[i] for i in flat], refine_intrinsics,
+        len(placements), [masks[i] for i in flat], refine_intrinsics, lens,
     )  # fmt: skip
     return problem, flat
 

@@ -49,6 +49,7 @@ from openptrack_py.config.base import Name, StrictModel
 from openptrack_py.config.loading import read_yaml, validate_config
 from openptrack_py.config.sensors import Pose
 from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.detection.lens import LENS_TERMS
 from openptrack_py.errors import CalibrationError, ConfigError
 from openptrack_py.geometry import pose_from_transform, world_from_optical
 
@@ -77,7 +78,8 @@ class CameraIntrinsics(StrictModel):
     cx, cy : float
         Principal point, pixels.
     distortion : tuple of float
-        OpenCV distortion coefficients ``k1, k2, p1, p2[, k3]`` (empty: none).
+        OpenCV distortion coefficients ``k1, k2, p1, p2, k3`` (empty: none; OpenCV's
+        longer models are accepted when their further terms are 0).
     """
 
     width: int = Field(gt=0, le=20000)
@@ -152,28 +154,28 @@ class SensorCalibration(StrictModel):
     def camera(self) -> Intrinsics | None:
         """The calibrated camera model the detector uses (``None`` if the entry has none).
 
-        Its pinhole and radial distortion ``k1``, ``k2``.
+        Its pinhole and lens distortion ``k1, k2, p1, p2, k3`` (a camera's factory terms,
+        as its driver or another calibration tool writes them, or this project's).
 
         Raises
         ------
         ConfigError
-            If the entry's distortion has terms the detector does not model (``p1``,
-            ``p2``, ``k3`` and beyond, as other calibration tools write them) that are
-            not 0: dropping them would misplace pixels silently.
+            If the entry's distortion has terms of OpenCV's longer models (rational
+            ``k4``-``k6``, thin prism ``s1``-``s4``, tilt) that are not 0: the detector
+            does not model them, and dropping them would misplace pixels silently.
         """
         k = self.intrinsics
         if k is None:
             return None
-        extra = [v for v in k.distortion[2:] if v != 0.0]
-        if extra:
+        if any(v != 0.0 for v in k.distortion[len(LENS_TERMS) :]):
             raise ConfigError(
-                "intrinsics.distortion: the detector models radial k1, k2 only; the other "
-                f"terms must be 0 (received {list(k.distortion)}): undistort the images in "
-                "the camera's driver and give no distortion, or calibrate with "
-                "'openptrack calibrate checkerboard --refine-intrinsics'"
+                f"intrinsics.distortion: the detector models {', '.join(LENS_TERMS)} only; "
+                "the rational, thin-prism and tilt terms after them must be 0 (received "
+                f"{list(k.distortion)}): calibrate with OpenCV's 5-term model, or with "
+                "'openptrack calibrate checkerboard --refine-intrinsics --lens full'"
             )
-        radial = (*k.distortion, 0.0, 0.0)[:2]
-        return Intrinsics(k.width, k.height, k.fx, k.fy, k.cx, k.cy, *radial)
+        pinhole = Intrinsics(k.width, k.height, k.fx, k.fy, k.cx, k.cy)
+        return pinhole.with_distortion(k.distortion[: len(LENS_TERMS)])
 
     def as_pose(self) -> Pose:
         """The pose as position, heading, tilt and roll."""

@@ -55,16 +55,7 @@ def add_parser(subparsers: Subparsers) -> None:
     board = sub.add_parser("checkerboard", help="checkerboard calibration")
     _common(board)
     board.add_argument("--placements", type=int, default=30, help="board placements (sim)")
-    own = board.add_mutually_exclusive_group()
-    own.add_argument(
-        "--intrinsics", action="store_true", help="estimate intrinsics first, per sensor (sim)"
-    )
-    own.add_argument(
-        "--refine-intrinsics",
-        action="store_true",
-        help="solve every sensor's focal lengths, centre and radial distortion with the "
-        "poses (for units whose intrinsics differ from their type's; written to the file)",
-    )
+    _intrinsics_arguments(board)
     board.add_argument(
         "--recordings",
         type=Path,
@@ -117,6 +108,27 @@ def add_parser(subparsers: Subparsers) -> None:
     show.add_argument("-c", "--config", help="network file: also check the sensor ids")
     show.add_argument("--format", choices=("table", "json", "markdown"), default="table")
     show.set_defaults(func=run_show)
+
+
+def _intrinsics_arguments(board: argparse.ArgumentParser) -> None:
+    """The checkerboard's options on the sensors' own camera models."""
+    own = board.add_mutually_exclusive_group()
+    own.add_argument(
+        "--intrinsics", action="store_true", help="estimate intrinsics first, per sensor (sim)"
+    )
+    own.add_argument(
+        "--refine-intrinsics",
+        action="store_true",
+        help="solve every sensor's focal lengths, centre and lens distortion with the "
+        "poses (for units whose intrinsics differ from their type's; written to the file)",
+    )
+    board.add_argument(
+        "--lens",
+        choices=("radial", "full"),
+        default="radial",
+        help="lens terms --refine-intrinsics solves: radial k1, k2 (default), or full: "
+        "OpenCV's k1, k2, p1, p2, k3 (needs placements reaching the image's corners)",
+    )
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -178,6 +190,8 @@ def run_checkerboard(args: argparse.Namespace) -> int:
 
     if args.record is not None and not args.sim:
         return _fail("checkerboard: --record writes a simulated session: it needs --sim")
+    if args.lens != "radial" and not args.refine_intrinsics:
+        return _fail(f"checkerboard: --lens {args.lens} is solved by --refine-intrinsics: add it")
     if sum([bool(args.sim), args.recordings is not None, args.live is not None]) != 1:
         return _fail("checkerboard: give one of --sim, --recordings DIR or --live SECONDS")
     try:
@@ -250,6 +264,7 @@ def _checkerboard_sim(network: NetworkConfig, args: argparse.Namespace) -> Any:
         seed=args.seed,
         estimate_intrinsics=args.intrinsics,
         refine_intrinsics=args.refine_intrinsics,
+        lens=args.lens,
         progress=progress,
     )
 

@@ -195,6 +195,7 @@ def solve(network: Any, args: argparse.Namespace, board: Any, collector: Any) ->
         floor_stamp=floor_stamp,
         reference_world_from_camera=reference_pose,
         refine_intrinsics=getattr(args, "refine_intrinsics", False),
+        lens=getattr(args, "lens", "radial"),
     )
 
 

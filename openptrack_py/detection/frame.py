@@ -14,18 +14,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from openptrack_py.detection.lens import LENS_TERMS, distort, undistort
 from openptrack_py.errors import ConfigError
 from openptrack_py.sensor_types import SENSOR_TYPES
 
-RAY_ITERATIONS = 20
-"""Fixed-point iterations inverting the radial distortion of a pixel's ray."""
 RAY_TOLERANCE_PX = 0.01
 """A ray whose distorted projection misses its pixel by more is not invertible there."""
 
 
 @dataclass(frozen=True, slots=True)
 class Intrinsics:
-    """Camera model of a depth image: pinhole and radial distortion.
+    """Camera model of a depth image: pinhole and lens distortion.
 
     Colour images are registered to the depth image.
 
@@ -39,8 +38,14 @@ class Intrinsics:
         Principal point, pixels.
     k1, k2 : float
         Radial lens distortion of the image (OpenCV's: a point at ``(x, y)`` on the
-        normalised image plane is imaged at ``(x, y) (1 + k1 r^2 + k2 r^4)``); 0 for an
-        image already undistorted, as most depth cameras' drivers deliver it.
+        normalised image plane is imaged at ``(x, y) (1 + k1 r^2 + k2 r^4 + k3 r^6)``
+        plus the tangential terms); 0 for an image already undistorted, as most depth
+        cameras' drivers deliver it.
+    p1, p2 : float
+        Tangential (decentering) distortion, OpenCV's (:mod:`openptrack_py.detection.lens`).
+    k3 : float
+        Third radial term. After ``p2`` in OpenCV's coefficient order, and last here so
+        that the fields before it keep their positions.
     """
 
     width: int
@@ -51,6 +56,9 @@ class Intrinsics:
     cy: float
     k1: float = 0.0
     k2: float = 0.0
+    p1: float = 0.0
+    p2: float = 0.0
+    k3: float = 0.0
 
     def __post_init__(self) -> None:
         if self.width < 1 or self.height < 1:
@@ -63,7 +71,7 @@ class Intrinsics:
                 raise ConfigError(
                     f"intrinsics.{name}: must be a positive number (received {value})"
                 )
-        for name in ("cx", "cy", "k1", "k2"):
+        for name in ("cx", "cy", *LENS_TERMS):
             if not math.isfinite(getattr(self, name)):
                 raise ConfigError(f"intrinsics.{name}: must be finite")
 
@@ -95,6 +103,26 @@ class Intrinsics:
         )
 
     @property
+    def distortion(self) -> tuple[float, float, float, float, float]:
+        """OpenCV's distortion coefficients ``(k1, k2, p1, p2, k3)``."""
+        return (self.k1, self.k2, self.p1, self.p2, self.k3)
+
+    @property
+    def has_lens(self) -> bool:
+        """Whether any distortion term is not 0 (else a plain pinhole)."""
+        return any(self.distortion)
+
+    def with_distortion(self, coeffs: tuple[float, ...] | np.ndarray) -> Intrinsics:
+        """The same pinhole with OpenCV coefficients ``(k1, k2[, p1, p2[, k3]])``."""
+        if len(coeffs) > len(LENS_TERMS):
+            raise ConfigError(
+                f"intrinsics.distortion: at most {len(LENS_TERMS)} terms "
+                f"({', '.join(LENS_TERMS)}), received {len(coeffs)}"
+            )
+        terms = [float(c) for c in coeffs] + [0.0] * (len(LENS_TERMS) - len(coeffs))
+        return Intrinsics(self.width, self.height, self.fx, self.fy, self.cx, self.cy, *terms)
+
+    @property
     def matrix(self) -> np.ndarray:
         """The 3x3 camera matrix."""
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
@@ -109,18 +137,16 @@ class Intrinsics:
             self.fy * sy,
             (self.cx + 0.5) * sx - 0.5,
             (self.cy + 0.5) * sy - 0.5,
-            self.k1,
-            self.k2,
+            *self.distortion,
         )
 
     def rays(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Where pixels look: ``x/z`` and ``y/z`` of their rays, undistorted.
 
-        The radial distortion is inverted by fixed-point iteration (OpenCV's
-        ``undistortPoints`` does the same, with fewer iterations by default). Where the
-        lens model cannot be inverted (beyond the radius at which ``r (1 + k1 r^2 +
-        k2 r^4)`` stops growing, which strong fitted terms put inside the image) the
-        iteration does not land back on the pixel: those rays are NaN.
+        The lens model is inverted by Newton's method
+        (:func:`~openptrack_py.detection.lens.undistort`). Where it cannot be inverted
+        (beyond the radius at which the imaged radius stops growing, which strong fitted
+        terms put inside the image) no ray lands back on the pixel: those rays are NaN.
 
         Parameters
         ----------
@@ -134,18 +160,10 @@ class Intrinsics:
         """
         xd = (np.asarray(u, dtype=float) - self.cx) / self.fx
         yd = (np.asarray(v, dtype=float) - self.cy) / self.fy
-        if not (self.k1 or self.k2):
+        if not self.has_lens:
             return xd, yd
-        x, y = xd, yd
-        for _ in range(RAY_ITERATIONS):
-            radial = self._radial(x * x + y * y)
-            x, y = xd / radial, yd / radial
-        r2 = x * x + y * y
-        radial = self._radial(r2)
-        growing = 1.0 + 3.0 * self.k1 * r2 + 5.0 * self.k2 * r2 * r2 > 0.0
-        miss = np.hypot((x * radial - xd) * self.fx, (y * radial - yd) * self.fy)
-        bad = ~(growing & (radial > 0.0) & (miss <= RAY_TOLERANCE_PX))
-        return np.where(bad, np.nan, x), np.where(bad, np.nan, y)
+        tolerance = RAY_TOLERANCE_PX / max(self.fx, self.fy)
+        return undistort(xd, yd, np.array(self.distortion), tolerance)
 
     def pixels(self, cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Image coordinates ``(u, v)`` of optical-frame points ``cam (..., 3)``.
@@ -154,18 +172,13 @@ class Intrinsics:
         first).
         """
         z = cam[..., 2]
-        if not (self.k1 or self.k2):
-            return self.fx * cam[..., 0] / z + self.cx, self.fy * cam[..., 1] / z + self.cy
         x, y = cam[..., 0] / z, cam[..., 1] / z
-        radial = self._radial(x * x + y * y)
-        return self.fx * x * radial + self.cx, self.fy * y * radial + self.cy
-
-    def _radial(self, r2: np.ndarray) -> np.ndarray:
-        """The lens's radial factor ``1 + k1 r^2 + k2 r^4`` at squared radii ``r2``."""
-        return 1.0 + self.k1 * r2 + self.k2 * r2 * r2
+        if self.has_lens:
+            x, y = distort(x, y, np.array(self.distortion))
+        return self.fx * x + self.cx, self.fy * y + self.cy
 
     def to_dict(self) -> dict[str, float | int]:
-        """Plain dict (for ``intrinsics.json``; ``k1``, ``k2`` only when not 0)."""
+        """Plain dict (for ``intrinsics.json``; the lens terms only when one is not 0)."""
         out: dict[str, float | int] = {
             "width": self.width,
             "height": self.height,
@@ -174,8 +187,8 @@ class Intrinsics:
             "cx": self.cx,
             "cy": self.cy,
         }
-        if self.k1 or self.k2:
-            out.update(k1=self.k1, k2=self.k2)
+        if self.has_lens:
+            out.update(zip(LENS_TERMS, self.distortion, strict=True))
         return out
 
     @classmethod
@@ -195,8 +208,7 @@ class Intrinsics:
                 float(data["fy"]),
                 float(data["cx"]),
                 float(data["cy"]),
-                float(data.get("k1", 0.0)),
-                float(data.get("k2", 0.0)),
+                *(float(data.get(name, 0.0)) for name in LENS_TERMS),
             )
         except KeyError as exc:
             raise ConfigError(

@@ -151,7 +151,7 @@ class DetectionResult:
 class _Rays:
     """Back-projection rays of a sub-sampled pixel grid, cached per intrinsics.
 
-    With radial distortion the rays are undistorted once here, so that detection costs
+    With lens distortion the rays are undistorted once here, so that detection costs
     the same per frame.
     """
 
@@ -164,7 +164,7 @@ class _Rays:
         uu, vv = np.meshgrid(self.u, self.v)
         # flat per-pixel tables: x/z and y/z of each ray, and its pixel coordinates
         self.partial = False
-        if k.k1 or k.k2:
+        if k.has_lens:
             x, y = k.rays(uu.ravel(), vv.ravel())
             self.x, self.y = x.astype(np.float32), y.astype(np.float32)
             self.partial = not bool(np.isfinite(self.x).all())

@@ -6,7 +6,7 @@ dropped (counted as ``frames_dropped``), never queued. The node's loop detects p
 the newest frame and publishes a DetectionBatch on ``opt/<site>/detections/<sensor_id>``;
 per-stage timings go into the node's stats. A sensor whose calibration entry holds its
 own intrinsics (a checkerboard calibration with ``--refine-intrinsics``) is detected
-through that camera model (pinhole and radial distortion) rather than the one its
+through that camera model (pinhole and lens distortion) rather than the one its
 frames report (a camera's factory figures, or its type's).
 """
 
@@ -89,7 +89,7 @@ class DetectorService:
         ``sensor.pose``) and clock offset (subtracted from the frames' stamps); updates
         are applied with :meth:`apply_calibration`.
     intrinsics : Intrinsics, optional
-        The sensor's calibrated camera model (pinhole and radial distortion), used
+        The sensor's calibrated camera model (pinhole and lens distortion), used
         instead of each frame's (scaled to the frame's size when its shape is the same).
     """
 

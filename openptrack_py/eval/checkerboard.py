@@ -441,6 +441,7 @@ def solve_board_session(
     min_shared_views: int = 3,
     estimate_intrinsics: bool = False,
     refine_intrinsics: bool = False,
+    lens: str = "radial",
 ) -> SimCalibration:
     """Solve a rendered session's poses and compare them with the true ones.
 
@@ -460,6 +461,7 @@ def solve_board_session(
         world_from_floor_board=None if floor is None else floor.world_from_board,
         min_shared_views=min_shared_views,
         refine_intrinsics=refine_intrinsics,
+        lens=lens,
     )
     truth = {s.id: world_from_optical(s.pose) for s in sensors}
     errors = {s.id: pose_error(calibration.world_from_optical[s.id], truth[s.id]) for s in sensors}
@@ -478,6 +480,7 @@ def simulate_checkerboard_calibration(
     min_shared_views: int = 3,
     estimate_intrinsics: bool = False,
     refine_intrinsics: bool = False,
+    lens: str = "radial",
     progress: CalibrationProgress | None = None,
 ) -> SimCalibration:
     """Run the whole checkerboard calibration on simulated sensors.
@@ -502,8 +505,10 @@ def simulate_checkerboard_calibration(
         Estimate each sensor's pinhole from its views (:func:`refit_intrinsics`) rather
         than use its type's nominal one (which the renderer uses).
     refine_intrinsics : bool
-        Solve every sensor's pinhole and radial distortion with the poses, from its
+        Solve every sensor's pinhole and lens distortion with the poses, from its
         type's nominal one (:func:`~openptrack_py.calibration.extrinsics.calibrate_extrinsics`).
+    lens : {"radial", "full"}
+        The lens terms ``refine_intrinsics`` solves.
     progress : CalibrationProgress, optional
         Updated after every placement, as a live capture loop would.
 
@@ -524,5 +529,5 @@ def simulate_checkerboard_calibration(
     return solve_board_session(
         sensors, session, observations, board=board, reference=reference,
         min_shared_views=min_shared_views, estimate_intrinsics=estimate_intrinsics,
-        refine_intrinsics=refine_intrinsics,
+        refine_intrinsics=refine_intrinsics, lens=lens,
     )  # fmt: skip

@@ -185,11 +185,10 @@ class DepthRenderer:
         self.room = room
         self.rng = rng
         self.intrinsics = intrinsics or Intrinsics.for_sensor(spec.type.name)
-        if self.intrinsics.k1 or self.intrinsics.k2:
+        if self.intrinsics.has_lens:
             raise ConfigError(
                 f"sensors.{spec.id}: the renderer draws through a pinhole; intrinsics with "
-                f"lens distortion (k1={self.intrinsics.k1:g}, k2={self.intrinsics.k2:g}) "
-                "cannot be rendered"
+                f"lens distortion {self.intrinsics.distortion} cannot be rendered"
             )
         self.noise = DEPTH_NOISE[spec.type.name] if noise else None
         self.world_from_camera = world_from_optical(spec.pose)

@@ -45,13 +45,23 @@ def test_every_field_round_trips() -> None:
     assert back.view is not None and back.view.stamp == 99.5
     np.testing.assert_array_equal(back.view.corners, CORNERS + 1)
     np.testing.assert_allclose(back.view.camera_from_board, _pose())
-    # a camera that reports its lens: the radial terms travel too (and only then)
-    lens = Intrinsics(512, 424, 365.0, 365.0, 256.0, 212.0, k1=-0.12, k2=0.04)
-    assert decode_board_report(encode_board_report(_report(intrinsics=lens))).intrinsics == lens
+    # a camera that reports its lens: its terms travel too (and only then)
+    for lens in (
+        Intrinsics(512, 424, 365.0, 365.0, 256.0, 212.0, k1=-0.12, k2=0.04),
+        Intrinsics(512, 424, 365.0, 365.0, 256.0, 212.0, 0.09, -0.27, 0.001, -0.002, 0.1),
+    ):
+        wire = decode_board_report(encode_board_report(_report(intrinsics=lens)))
+        assert wire.intrinsics == lens
     assert b"k1" not in encode_board_report(report)
     bare = decode_board_report(encode_board_report(_report()))
     assert bare.corners is None and bare.view is None and bare.intrinsics is None
     assert not bare.end
+
+
+def _camera(**fields: object) -> dict:
+    """A camera's intrinsics as a report carries them, with ``fields`` changed or added."""
+    return {"width": 512, "height": 424, "fx": 365.0, "fy": 365.0, "cx": 0.0, "cy": 0.0,
+            **fields}  # fmt: skip
 
 
 def _wire(**fields: object) -> bytes:
@@ -95,33 +105,9 @@ def _wire(**fields: object) -> bytes:
             "view.stamp",
         ),
         ({"extra": 1}, "extra"),
-        (
-            {
-                "intrinsics": {
-                    "width": 512,
-                    "height": 424,
-                    "fx": -1.0,
-                    "fy": 1.0,
-                    "cx": 0.0,
-                    "cy": 0.0,
-                }
-            },
-            "intrinsics.fx",
-        ),
-        (
-            {
-                "intrinsics": {
-                    "width": 512,
-                    "height": 424,
-                    "fx": 365.0,
-                    "fy": 365.0,
-                    "cx": 0.0,
-                    "cy": 0.0,
-                    "k1": 1e6,
-                }
-            },
-            "intrinsics.k1",
-        ),
+        ({"intrinsics": _camera(fx=-1.0, fy=1.0)}, "intrinsics.fx"),
+        ({"intrinsics": _camera(k1=1e6)}, "intrinsics.k1"),
+        ({"intrinsics": _camera(p2="x")}, "intrinsics.p2"),
         (
             {
                 "view": {

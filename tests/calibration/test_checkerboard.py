@@ -9,6 +9,7 @@ sensors rendered at their real resolution. Every run is seeded.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -152,6 +153,30 @@ def boards_among(sensors: dict[str, np.ndarray], count: int, seed: int) -> list[
         centre = np.array([3.0, 2.5, 1.3]) + rng.uniform(-0.4, 0.4, 3) * [1, 1, 0.5]
         toward = (sensors[a][:3, 3] + sensors[b][:3, 3]) / 2 + rng.normal(0, 0.3, 3)
         out.append(facing(centre, toward, rng.uniform(-30, 30)))
+    return out
+
+
+def edge_boards(
+    sensors: dict[str, np.ndarray], distance_m: float, seed: int, edge: float = 0.27
+) -> list[np.ndarray]:
+    """Per sensor, 8 boards towards its image's corners and edges, seen by it alone.
+
+    As a calibration guide asks (the lens shows most near the image's borders): the
+    board's centre on the ray of the pixel ``edge`` of the image's size in from each
+    side, ``distance_m`` away, facing the camera.
+    """
+    rng = np.random.default_rng(seed)
+    k = Intrinsics.for_sensor("kinect2")
+    out = []
+    for world_from_cam in sensors.values():
+        for fu, fv in itertools.product((edge, 0.5, 1.0 - edge), repeat=2):
+            if fu == fv == 0.5:
+                continue
+            x, y = k.rays(np.array([fu * k.width]), np.array([fv * k.height]))
+            ray = np.array([x[0], y[0], 1.0]) * distance_m * rng.uniform(0.95, 1.05)
+            centre = world_from_cam[:3, :3] @ ray + world_from_cam[:3, 3]
+            toward = world_from_cam[:3, 3] + rng.normal(0, 0.2, 3)
+            out.append(facing(centre, toward, rng.uniform(-30, 30)))
     return out
 
 
@@ -384,8 +409,12 @@ def test_groups_without_enough_shared_views_are_named_with_the_minimum() -> None
     assert "c1–c2 1" in message
 
 
-@pytest.mark.parametrize("refine", [False, True], ids=["poses", "poses and intrinsics"])
-def test_jacobian_sparsity_matches_finite_differences(refine: bool) -> None:
+@pytest.mark.parametrize(
+    ("refine", "lens"),
+    [(False, "radial"), (True, "radial"), (True, "full")],
+    ids=["poses", "poses and intrinsics", "poses and intrinsics, full lens"],
+)
+def test_jacobian_sparsity_matches_finite_differences(refine: bool, lens: str) -> None:
     rng = np.random.default_rng(6)
     sensors = ring(3)
     boards = boards_among(sensors, 4, seed=6)
@@ -394,14 +423,14 @@ def test_jacobian_sparsity_matches_finite_differences(refine: bool) -> None:
     views = [(0, 0), (1, 0), (1, 1), (2, 2), (0, 3), (2, 3)]
     problem = BundleProblem(
         small.object_points(), intr, 1, [(s, p, np.zeros((6, 2))) for s, p in views], 4,
-        refine_intrinsics=refine,
+        refine_intrinsics=refine, lens=lens,
     )  # fmt: skip
     cams = np.stack([invert(sensors[f"c{i}"]) for i in range(3)])
     x = problem.pack(cams, np.stack(boards))
-    # poses moved a little; intrinsics by a pixel and the radial terms off zero
-    x += np.concatenate([rng.normal(0, 0.01, problem.n_pose_params), rng.normal(0, 1.0, 18)])[
-        : problem.n_params
-    ]
+    # poses moved a little; intrinsics by a pixel and the lens terms off zero
+    extra = problem.n_intrinsics * 3  # intrinsics per sensor, and a prior residual for each
+    assert extra == {(False, "radial"): 0, (True, "radial"): 18, (True, "full"): 27}[refine, lens]
+    x += np.concatenate([rng.normal(0, 0.01, problem.n_pose_params), rng.normal(0, 0.1, extra)])
     base = problem.residuals(x)
     dense = np.empty((len(base), problem.n_params))
     for j in range(problem.n_params):
@@ -409,7 +438,6 @@ def test_jacobian_sparsity_matches_finite_differences(refine: bool) -> None:
         step[j] = 1e-6
         dense[:, j] = (problem.residuals(x + step) - problem.residuals(x - step)) / 2e-6
     pattern = problem.sparsity().toarray().astype(bool)
-    extra = 18 if refine else 0  # 6 intrinsics per sensor, and a prior residual for each
     assert pattern.shape == dense.shape == (6 * 12 + extra, 6 * 2 + 6 * 4 + extra)
     nonzero = np.abs(dense) > 1e-6
     assert not (nonzero & ~pattern).any()  # nothing outside the pattern
@@ -508,6 +536,52 @@ def test_units_whose_lenses_differ_from_the_nominal_are_calibrated_with_their_in
     assert refined.intrinsics_warnings() == []
     assert refined.report.distortion_px["c3"] > 1.0
     assert refined.intrinsics["c3"].k1 == refined.distortion["c3"][0]
+
+
+def test_a_decentred_lens_with_a_third_radial_term_is_solved_with_the_full_lens_model() -> None:
+    """Units whose lenses have all five of OpenCV's terms (``k3`` and a decentering, as a
+    lens mounted slightly off the sensor's axis has), with boards reaching the image's
+    borders: the radial model fits the corners as well by moving the image centre, and
+    turns the sensors 0.5-0.9 degrees; the full model puts every sensor within 1 cm and
+    0.35 degrees and finds the tangential terms to 0.002."""
+    nominal = Intrinsics.for_sensor("kinect2")
+    sensors = ring(4)
+    units = {}
+    lenses = [(0.08, -0.1, 0.003, -0.002, 0.05), (-0.06, 0.02, -0.002, 0.003, 0.04),
+              (0.03, -0.05, 0.002, 0.002, -0.03), (0.1, -0.12, -0.003, -0.002, 0.06)]  # fmt: skip
+    for i, (d, lens) in enumerate(zip((0.02, -0.015, 0.01, -0.02), lenses, strict=True)):
+        k = Intrinsics(512, 424, nominal.fx * (1 + d), nominal.fy * (1 + d),
+                       nominal.cx + 4 * d * 100, nominal.cy - 2 * d * 100)  # fmt: skip
+        units[f"c{i}"] = (k, np.array(lens))
+    boards = [
+        *boards_among(sensors, 40, seed=1),
+        *edge_boards(sensors, 2.2, seed=2),
+        *edge_boards(sensors, 3.0, seed=3),
+        floor_board((3.0, 2.5)),
+    ]
+    obs = distorted_views(sensors, boards, units, noise_px=0.15, seed=5)
+    args = (obs, dict.fromkeys(sensors, nominal), SIM_BOARD.object_points())
+    where = {"floor_stamp": 10.0 * (len(boards) - 1), "world_from_floor_board": boards[-1]}
+    radial = calibrate_extrinsics(*args, **where, refine_intrinsics=True)
+    full = calibrate_extrinsics(*args, **where, refine_intrinsics=True, lens="full")
+    assert max(full.report.rms_px.values()) < 0.25  # the corners' noise, 0.15 px per axis
+    turns = {"radial": [], "full": []}
+    for sid, truth in sensors.items():
+        error = pose_error(full.world_from_optical[sid], truth)
+        assert error.translation_cm < 1.0 and error.rotation_deg < 0.35, (sid, error)
+        turns["full"].append(error.rotation_deg)
+        turns["radial"].append(pose_error(radial.world_from_optical[sid], truth).rotation_deg)
+        k, lens = units[sid]
+        got = full.intrinsics[sid]
+        assert got.fx == pytest.approx(k.fx, rel=0.005)
+        np.testing.assert_allclose(got.distortion[2:4], lens[2:4], atol=2e-3)  # p1, p2
+        sd = full.report.intrinsics_sd[sid]
+        assert len(sd) == 9 and len(radial.report.intrinsics_sd[sid]) == 6
+        assert full.entries()[sid].intrinsics.distortion == got.distortion
+        assert radial.intrinsics[sid].distortion[2:] == (0.0, 0.0, 0.0)
+    assert min(turns["radial"]) > 0.5 and max(turns["full"]) < 0.5 * max(turns["radial"]), turns
+    with pytest.raises(CalibrationError, match="lens 'fisheye' is not one of radial, full"):
+        calibrate_extrinsics(*args, **where, refine_intrinsics=True, lens="fisheye")
 
 
 def test_a_thin_session_says_its_refined_focal_lengths_are_poorly_determined() -> None:

@@ -289,12 +289,15 @@ def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
     for sensor_id, entry in entries.items():
         k = entry.intrinsics
         assert k is not None and (k.width, k.height) == (512, 424), sensor_id
-        assert abs(k.fx / nominal.fx - 1) < 0.01 and len(k.distortion) == 4, sensor_id
+        assert abs(k.fx / nominal.fx - 1) < 0.01 and len(k.distortion) == 5, sensor_id
         rel = np.linalg.inv(anchor) @ entry.world_from_optical()
         true_rel = np.linalg.inv(true_anchor) @ _true_pose(sensor_id)
         assert np.linalg.norm(rel[:3, 3] - true_rel[:3, 3]) < 0.02, sensor_id
     both = _cli("checkerboard", "demo", "--sim", "--intrinsics", "--refine-intrinsics")
     assert both.returncode == 2 and "not allowed with argument" in both.stderr
+    lens_alone = _cli("checkerboard", "demo", "--sim", "--lens", "full")
+    assert lens_alone.returncode != 0
+    assert "--lens full is solved by --refine-intrinsics: add it" in lens_alone.stderr
 
 
 def test_checkerboard_recordings_name_a_missing_sensor(tmp_path: Path) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -98,16 +99,31 @@ def test_a_walk_keeps_the_intrinsics_a_checkerboard_solved_and_a_checkerboard_re
     assert current.sensors["k2_a"].method == "checkerboard"  # the original is unchanged
 
 
-def test_lens_terms_the_detector_does_not_model_are_refused_not_dropped() -> None:
+def test_a_cameras_five_factory_lens_terms_reach_the_detector() -> None:
     # a Kinect v2 infrared camera's factory terms (k1, k2, p1, p2, k3), as libfreenect2
     # reports them: k3 is not 0
+    factory = (0.0905, -0.2706, 0.0012, -0.0008, 0.0967)
     lens = CameraIntrinsics(width=512, height=424, fx=365.0, fy=365.0, cx=256.0, cy=212.0,
-                            distortion=(0.0905, -0.2706, 0.0, 0.0, 0.0967))  # fmt: skip
+                            distortion=factory)  # fmt: skip
+    camera = SensorCalibration(pose=TRUE, intrinsics=lens).camera()
+    assert camera == Intrinsics(512, 424, 365.0, 365.0, 256.0, 212.0, *factory)
+    assert camera.distortion == factory
+    short = lens.model_copy(update={"distortion": (0.0905, -0.2706)})  # k1, k2 only
+    assert SensorCalibration(pose=TRUE, intrinsics=short).camera().distortion == (
+        0.0905, -0.2706, 0.0, 0.0, 0.0
+    )  # fmt: skip
+
+
+def test_lens_terms_the_detector_does_not_model_are_refused_not_dropped() -> None:
+    # OpenCV's rational model: k4 (the sixth term) is not 0
+    rational = (0.0905, -0.2706, 0.0, 0.0, 0.0967, 0.02, 0.0, 0.0)
+    lens = CameraIntrinsics(width=512, height=424, fx=365.0, fy=365.0, cx=256.0, cy=212.0,
+                            distortion=rational)  # fmt: skip
     entry = SensorCalibration(pose=TRUE, intrinsics=lens)
-    with pytest.raises(ConfigError, match=r"intrinsics\.distortion: the detector models radial"):
+    with pytest.raises(ConfigError, match=r"intrinsics\.distortion: the detector models k1, k2"):
         entry.camera()
-    radial = lens.model_copy(update={"distortion": (0.0905, -0.2706, 0.0, 0.0, 0.0)})
-    assert SensorCalibration(pose=TRUE, intrinsics=radial).camera().k2 == -0.2706
+    zeros_after = lens.model_copy(update={"distortion": (*rational[:5], 0.0, 0.0, 0.0)})
+    assert SensorCalibration(pose=TRUE, intrinsics=zeros_after).camera().k3 == 0.0967
 
 
 def test_a_hand_written_pose_is_the_same_as_its_matrix() -> None:
@@ -214,3 +230,14 @@ def test_a_simulated_sensor_reports_through_its_calibration(tmp_path: Path) -> N
     assert off > 0.3 and skew_off == pytest.approx(0.25, abs=1e-9)
     assert on < 0.06 and skew_on < 1e-9
     assert math.isfinite(on)
+
+
+def test_the_documented_example_file_is_valid() -> None:
+    """The calibration file shown in ``docs/calibration.md`` passes its own validation
+    (its rotation was once rounded to 3 decimals, 1.2e-3 from orthonormal)."""
+    text = (Path(__file__).parents[2] / "docs" / "calibration.md").read_text(encoding="utf-8")
+    example = re.search(r"```yaml\n(.*?)```", text, re.S)
+    assert example is not None
+    entries = CalibrationFile.model_validate(yaml.safe_load(example.group(1))).sensors
+    assert entries["k2_a"].camera().distortion == (0.0905, -0.2706, 0.0, 0.0, 0.0967)
+    assert entries["k2_b"].camera() is None
