@@ -5,22 +5,28 @@ Kinect v2 and an SR4500, 24 placements). Per seed, two kinds of units:
 
 * ``own``: each camera drawn with its own pinhole, focal length 1.5-3 % longer or
   shorter than its type's and centre up to 6 px off (drawn from the seed);
-* ``nominal``: each camera drawn with its type's pinhole.
+* ``nominal``: each camera drawn with its type's pinhole;
+* ``lens``: its own pinhole as ``own``, and its own lens with all five of OpenCV's terms
+  (``k1`` 0.03-0.12 either way, ``k2`` against it, ``p1``, ``p2`` up to 0.003, ``k3``
+  up to 0.02), traced by the renderer; its frames report the pinhole without the lens.
 
 Each session is rendered once and solved twice, both given the type's nominal pinhole:
-as it is, and with ``refine_intrinsics``. Prints one JSON line per seed and kind (each
+as it is, and with ``refine_intrinsics`` (``lens`` sessions a third time, with
+``lens="full"``). Prints one JSON line per seed and kind (each
 sensor's translation and rotation error, both solves), then the summary per kind and
 solve (estimates within 1 cm, median and worst translation, Kinect v2 within 0.2
 degrees, the SR4500's rotation range), the rows of ``docs/calibration.md``'s table.
 
-Run from the repository root (about 3 minutes on 2 cores)::
+Run from the repository root (about 3 minutes on 2 cores for ``own`` and ``nominal``)::
 
     python -m benchmarks.intrinsics_table
+    python -m benchmarks.intrinsics_table --kinds lens
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -41,15 +47,24 @@ PLACEMENTS = 24
 
 
 def units(seed: int, kind: str) -> list[SimSensor]:
-    """The acceptance sensors, with their own pinholes (``own``) or their type's."""
+    """The acceptance sensors, with their own pinholes (``own``, ``lens``) or their type's."""
     if kind == "nominal":
         return list(ACCEPTANCE_SENSORS)
     rng = np.random.default_rng(1000 + seed)
+    lens_rng = np.random.default_rng(2000 + seed)
     out = []
     for s in ACCEPTANCE_SENSORS:
         d = rng.uniform(0.015, 0.03) * rng.choice([-1, 1])
         du, dv = rng.uniform(-6, 6, 2)
-        out.append(s.with_own_pinhole(d, d * rng.uniform(0.8, 1.0), du, dv))
+        unit = s.with_own_pinhole(d, d * rng.uniform(0.8, 1.0), du, dv)
+        if kind == "lens":
+            k1 = lens_rng.uniform(0.03, 0.12) * lens_rng.choice([-1, 1])
+            k2 = -k1 * lens_rng.uniform(0.2, 0.6)
+            p1, p2 = lens_rng.uniform(-0.003, 0.003, 2)
+            k3 = lens_rng.uniform(-0.02, 0.02)
+            own = unit.intrinsics.with_distortion((k1, k2, p1, p2, k3))  # type: ignore[union-attr]
+            unit = dataclasses.replace(unit, intrinsics=own)
+        out.append(unit)
     return out
 
 
@@ -59,9 +74,12 @@ def one(job: tuple[int, str]) -> dict[str, object]:
     sensors = units(seed, kind)
     session, obs = render_board_session(sensors, ACCEPTANCE_ROOM, placements=PLACEMENTS, seed=seed)
     out: dict[str, object] = {"seed": seed, "kind": kind}
-    for refine in (False, True):
-        result = solve_board_session(sensors, session, obs, refine_intrinsics=refine)
-        out["refined" if refine else "nominal"] = {
+    solves = [("nominal", False, "radial"), ("refined", True, "radial")]
+    if kind == "lens":
+        solves.append(("full", True, "full"))
+    for name, refine, lens in solves:
+        result = solve_board_session(sensors, session, obs, refine_intrinsics=refine, lens=lens)
+        out[name] = {
             s: [round(e.translation_cm, 3), round(e.rotation_deg, 4)]
             for s, e in result.errors.items()
         }
@@ -71,9 +89,11 @@ def one(job: tuple[int, str]) -> dict[str, object]:
 def summarise(rows: list[dict]) -> list[dict[str, object]]:
     """Per kind of unit and solve: the table's columns."""
     out = []
-    for kind in ("own", "nominal"):
-        for solve in ("nominal", "refined"):
-            errs = [r[solve] for r in rows if r["kind"] == kind]
+    for kind in ("own", "nominal", "lens"):
+        for solve in ("nominal", "refined", "full"):
+            errs = [r[solve] for r in rows if r["kind"] == kind and solve in r]
+            if not errs:
+                continue
             trans = np.array([v[0] for e in errs for v in e.values()])
             k2 = np.array([v[1] for e in errs for s, v in e.items() if s != "sr"])
             sr = np.array([e["sr"][1] for e in errs])
@@ -97,8 +117,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS))
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--kinds", nargs="+", choices=("own", "nominal", "lens"), default=["own", "nominal"]
+    )
     args = parser.parse_args(argv)
-    jobs = [(seed, kind) for seed in args.seeds for kind in ("own", "nominal")]
+    jobs = [(seed, kind) for seed in args.seeds for kind in args.kinds]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         rows = list(pool.map(one, jobs))
     for row in rows:

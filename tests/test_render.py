@@ -7,14 +7,11 @@ rendered people against where they stand and what they wear. Every run is seeded
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 from openptrack_py.config import Pose, SensorConfig
 from openptrack_py.detection.frame import Intrinsics
-from openptrack_py.errors import ConfigError
 from openptrack_py.geometry import world_from_optical
 from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.sim.render import DEPTH_NOISE, WALL_HEIGHT_M, DepthRenderer, RenderedFrame
@@ -315,8 +312,35 @@ def test_rendering_is_deterministic_for_a_seed() -> None:
     assert np.array_equal(a.labels, c.labels)  # the scene is the same, only the noise differs
 
 
-def test_a_lens_with_distortion_is_refused_by_the_pinhole_renderer() -> None:
-    spec = SensorSpec.from_config(SensorConfig(id="cam", type="kinect2", pose=Pose(z=2.5)))
-    lens = dataclasses.replace(Intrinsics.for_sensor("kinect2"), k1=-0.1)
-    with pytest.raises(ConfigError, match=r"sensors\.cam: the renderer draws through a pinhole"):
-        DepthRenderer(spec, Room(6.0, 5.0), np.random.default_rng(0), intrinsics=lens)
+@pytest.mark.parametrize(
+    "lens", [(-0.15, 0.05, 0.0, 0.0, 0.0), (-0.12, 0.04, 0.004, -0.004, 0.02)], ids=str
+)
+def test_a_lens_renders_what_opencv_remaps_the_pinhole_image_to(lens: tuple) -> None:
+    """Rays traced through a distorting lens see what the pinhole image, remapped by
+    OpenCV's lens model (an oracle independent of ours), shows at each pixel."""
+    cv2 = pytest.importorskip("cv2")
+    pinhole = Intrinsics.for_sensor("kinect2")
+    people = _snap([ALICE, BOB], t=0.7)
+    plain = _person_renderer().render(people).frame
+    spec = _spec("kinect2", PERSON_POSE)
+    rng = np.random.default_rng(0)
+    through = DepthRenderer(
+        spec, ROOM, rng, noise=False, intrinsics=pinhole.with_distortion(lens)
+    ).render(people)
+    grid = np.mgrid[0 : pinhole.height, 0 : pinhole.width][::-1].reshape(2, -1).T
+    source = cv2.undistortPoints(
+        grid.reshape(-1, 1, 2).astype(np.float64), pinhole.matrix, np.array(lens),
+        P=pinhole.matrix,
+    ).reshape(pinhole.height, pinhole.width, 2).astype(np.float32)  # fmt: skip
+    remapped = cv2.remap(
+        plain.depth, source[..., 0], source[..., 1], cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan,
+    )  # fmt: skip
+    depth = through.frame.depth
+    both = np.isfinite(remapped) & np.isfinite(depth)
+    assert both.mean() > 0.8  # a barrel lens sees beyond the pinhole image at its borders
+    assert (np.abs(remapped - depth)[both] < 0.03).mean() > 0.98
+    assert (through.labels >= 0).sum() > 2000  # the people are drawn
+    # ... which is not the pinhole image
+    seen = both & np.isfinite(plain.depth)
+    assert (np.abs(plain.depth - depth)[seen] > 0.03).mean() > 0.05

@@ -107,7 +107,11 @@ class BundleProblem:
         pixels, :mod:`openptrack_py.detection.lens`), 6 or 9 unknowns per sensor after
         the placements' (``lens``), started from the given intrinsics and no
         distortion, under the weak prior :data:`INTRINSIC_PRIOR` (as many more residuals
-        per sensor, after the corners').
+        per sensor, after the corners'). They are solved as departures from the given
+        ones in units of the prior's standard deviations: all start at 0 and are of
+        order 1, where raw focal lengths and image centres (hundreds of pixels) beside
+        lens terms of a few hundredths left the trust-region solver stopping early, far
+        from the solution, on units whose lens moves corners by pixels.
     lens : {"radial", "full"}
         The lens terms solved with ``refine_intrinsics`` (:data:`LENS_MODELS`).
     """
@@ -173,8 +177,12 @@ class BundleProblem:
         if not self.refine_intrinsics:
             return self.given
         out = self.given.copy()
-        out[:, : self.n_intrinsics] = x[self.n_pose_params :].reshape(self.sensors, -1)
+        out[:, : self.n_intrinsics] += self._intrinsic_block(x) * self._prior_sigma
         return out
+
+    def _intrinsic_block(self, x: np.ndarray) -> np.ndarray:
+        """``(sensors, solved)``: the intrinsics' unknowns, in their prior's deviations."""
+        return x[self.n_pose_params :].reshape(self.sensors, self.n_intrinsics)
 
     def pack(
         self,
@@ -196,8 +204,12 @@ class BundleProblem:
             centre = pose[:3, :3] @ self._board_centre + pose[:3, 3]
             blocks.append(_to_params(pose[:3, :3], centre))
         if self.refine_intrinsics:
-            start = self.given if intrinsics is None else intrinsics
-            blocks.append(start[:, : self.n_intrinsics].ravel())
+            if intrinsics is not None:
+                solved = slice(0, self.n_intrinsics)
+                start = (intrinsics - self.given)[:, solved] / self._prior_sigma
+                blocks.append(start.ravel())
+            else:
+                blocks.append(np.zeros(self.n_intrinsics * self.sensors))
         return np.concatenate([np.zeros(0), *blocks])
 
     def _rotations(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -249,9 +261,7 @@ class BundleProblem:
         corners = ((self.project(x) - self.observed) * self.mask[..., None]).ravel()
         if not self.refine_intrinsics:
             return corners
-        solved = slice(0, self.n_intrinsics)
-        prior = PRIOR_PX * (self.intrinsics(x) - self.given)[:, solved] / self._prior_sigma
-        return np.concatenate([corners, prior.ravel()])
+        return np.concatenate([corners, PRIOR_PX * self._intrinsic_block(x).ravel()])
 
     def intrinsics_sd(self, x: np.ndarray) -> np.ndarray:
         """``(sensors, solved)``: standard deviations of the refined intrinsics at ``x``.
@@ -279,7 +289,7 @@ class BundleProblem:
         jac[n:] /= PRIOR_PX
         cov = np.linalg.pinv(jac.T @ jac)
         sd = np.sqrt(np.maximum(np.diag(cov)[self.n_pose_params :], 0.0))
-        return sd.reshape(self.sensors, self.n_intrinsics)
+        return sd.reshape(self.sensors, self.n_intrinsics) * self._prior_sigma
 
     def distortion_px(self, x: np.ndarray) -> np.ndarray:
         """``(sensors,)``: how far the distortion moves a corner seen, at most.
@@ -351,6 +361,15 @@ def solve(
     (1e-6) the Gauss-Newton steps of this poorly scaled problem (metres against radians
     against pixels) are too rough and the solver crawls for hundreds of iterations.
 
+    The Huber loss is annealed: when the start is far from the answer (the median corner
+    several times ``huber_px`` off, as with a lens whose distortion the start does not
+    know), a first solve uses a threshold of three median corner errors, and the second
+    the given one from there (graduated robustness, as bundle adjusters anneal their
+    robust kernels). With almost every residual in the loss's linear part from the
+    start, the trust-region solver crawls: on a rendered session of units with lenses
+    moving corners by up to 11 px it had cut the cost by a third after 200 evaluations,
+    where the annealed solve converges in a few dozen.
+
     Parameters
     ----------
     problem : BundleProblem
@@ -368,23 +387,27 @@ def solve(
         Refined parameters, Jacobian evaluations, and the ``least_squares`` cost before
         and after.
     """
-    result = least_squares(
-        problem.residuals,
-        x0,
-        jac_sparsity=problem.sparsity(),
-        method="trf",
-        tr_solver="lsmr",
-        tr_options={"atol": 1e-14, "btol": 1e-14, "maxiter": max(1000, 4 * problem.n_params)},
-        loss="huber",
-        f_scale=huber_px,
-        x_scale="jac",
-        xtol=1e-10,
-        ftol=1e-10,
-        gtol=1e-10,
-        max_nfev=max_evaluations,
-    )
     initial = huber_cost(problem.residuals(x0), huber_px)
-    return result.x, int(result.njev or result.nfev), initial, float(result.cost)
+    start = 3.0 * float(np.median(problem.view_errors(x0)[problem.mask]))
+    x, iterations = x0, 0
+    for scale in ([start] if start > huber_px else []) + [huber_px]:
+        result = least_squares(
+            problem.residuals,
+            x,
+            jac_sparsity=problem.sparsity(),
+            method="trf",
+            tr_solver="lsmr",
+            tr_options={"atol": 1e-14, "btol": 1e-14, "maxiter": max(1000, 4 * problem.n_params)},
+            loss="huber",
+            f_scale=scale,
+            x_scale="jac",
+            xtol=1e-10,
+            ftol=1e-10,
+            gtol=1e-10,
+            max_nfev=max_evaluations,
+        )
+        x, iterations = result.x, iterations + int(result.njev or result.nfev)
+    return x, iterations, initial, float(result.cost)
 
 
 def huber_cost(residuals: np.ndarray, scale: float) -> float:

@@ -263,15 +263,21 @@ def image_box(cam: np.ndarray, k: Intrinsics, pad: int = 0) -> tuple[int, int, i
     """Pixel box ``(u0, u1, v0, v1)`` covering optical-frame points; None when out of view.
 
     The whole image when some point is at or behind the camera; ``pad`` more pixels on
-    every side.
+    every side. Through a lens, straight edges bow: the midpoints of every pair of points
+    are projected too, and 2 more pixels padded.
     """
     z = cam[:, 2]
     if z.max() <= 0.05:
         return None
     if z.min() <= 0.05:
         return 0, k.width, 0, k.height
-    u = k.fx * cam[:, 0] / z + k.cx
-    v = k.fy * cam[:, 1] / z + k.cy
+    if k.has_lens:
+        i, j = np.triu_indices(len(cam), 1)
+        u, v = k.pixels(np.concatenate([cam, 0.5 * (cam[i] + cam[j])]))
+        pad += 2
+    else:
+        u = k.fx * cam[:, 0] / z + k.cx
+        v = k.fy * cam[:, 1] / z + k.cy
     u0, u1 = max(math.floor(u.min()) - pad, 0), min(math.floor(u.max()) + 2 + pad, k.width)
     v0, v1 = max(math.floor(v.min()) - pad, 0), min(math.floor(v.max()) + 2 + pad, k.height)
     if u0 >= u1 or v0 >= v1:

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -70,8 +70,8 @@ class SimSensor:
     pose : Pose
         True pose in the world.
     intrinsics : Intrinsics, optional
-        The unit's true pinhole when it is not its type's nominal one (the renderer
-        draws with it; the calibration is still given the nominal one).
+        The unit's true pinhole (and lens) when it is not its type's nominal one (the
+        renderer draws with it; the calibration is still given the nominal one).
     """
 
     id: str
@@ -316,14 +316,19 @@ def _capture(
 def placement_frames(
     rig: SensorRig, board: Checkerboard, placement: BoardPlacement, seq: int, frames: int
 ) -> Iterator[Frame]:
-    """One sensor's ``frames`` consecutive frames of one placement, the board drawn in."""
+    """One sensor's ``frames`` consecutive frames of one placement, the board drawn in.
+
+    A unit with a lens reports its pinhole without it, as a driver that does not know
+    its lens does: its corners are then found raw, for the calibration to solve the lens.
+    """
     renderer = rig.renderer
+    lens = renderer.intrinsics.has_lens
     period = 1.0 / rig.sensor.spec().rate_hz
     stamp = placement.stamp + rig.phase
     snap = holder_snapshot(placement, stamp)
     scene = rig.truth.render(snap, stamp, seq).frame.depth
     for i in range(frames):
-        yield draw_board(
+        frame = draw_board(
             renderer.render(snap, stamp + i * period, seq),
             board,
             placement.world_from_board,
@@ -333,6 +338,7 @@ def placement_frames(
             rng=rig.rng,
             scene_depth=scene,
         ).frame
+        yield replace(frame, intrinsics=frame.intrinsics.with_distortion(())) if lens else frame
 
 
 def record_board_session(

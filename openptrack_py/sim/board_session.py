@@ -127,8 +127,7 @@ def _visible(
     z = outline[:, 2]
     if z.min() < kind.min_range_m or z.max() > kind.max_range_m:
         return False
-    u = k.fx * outline[:, 0] / z + k.cx
-    v = k.fy * outline[:, 1] / z + k.cy
+    u, v = k.pixels(outline)
     if u.min() < margin_px or v.min() < margin_px:
         return False
     if u.max() > k.width - 1 - margin_px or v.max() > k.height - 1 - margin_px:

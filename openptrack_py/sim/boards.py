@@ -134,8 +134,7 @@ def _cover(
     plane = float(normal @ origin)
     for dv in offsets:
         for du in offsets:
-            dx = (uu + du - k.cx) / k.fx
-            dy = (vv + dv - k.cy) / k.fy
+            dx, dy = k.rays(uu + du, vv + dv)
             denom = normal[0] * dx + normal[1] * dy + normal[2]
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = plane / denom  # depth along the optical axis
@@ -161,8 +160,7 @@ def _cover(
     n = supersample * supersample
     with np.errstate(divide="ignore", invalid="ignore"):
         depth = np.where(cover > 0, depth_sum / cover, np.inf)
-    dx = (uu - k.cx) / k.fx
-    dy = (vv - k.cy) / k.fy
+    dx, dy = k.rays(uu, vv)
     cos = np.abs(normal[0] * dx + normal[1] * dy + normal[2]) / np.sqrt(dx * dx + dy * dy + 1)
     return _Coverage(cover / n, shade / n, ir / n, depth, cos)
 

@@ -33,7 +33,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from openptrack_py.detection.frame import Frame, Intrinsics, image_box
-from openptrack_py.errors import ConfigError
 from openptrack_py.geometry import apply, invert, world_from_optical
 from openptrack_py.sim.clothing import SKIN
 from openptrack_py.sim.sensor_spec import SensorSpec
@@ -167,7 +166,9 @@ class DepthRenderer:
     rng : numpy.random.Generator
         Noise source.
     intrinsics : Intrinsics, optional
-        Override the type's nominal intrinsics (a pinhole: no lens distortion).
+        Override the type's nominal intrinsics: a unit's own pinhole, and its lens (each
+        pixel's ray is traced through it; pixels where the lens cannot be inverted see
+        nothing).
     noise : bool
         Apply the sensor type's depth degradation.
     """
@@ -185,20 +186,13 @@ class DepthRenderer:
         self.room = room
         self.rng = rng
         self.intrinsics = intrinsics or Intrinsics.for_sensor(spec.type.name)
-        if self.intrinsics.has_lens:
-            raise ConfigError(
-                f"sensors.{spec.id}: the renderer draws through a pinhole; intrinsics with "
-                f"lens distortion {self.intrinsics.distortion} cannot be rendered"
-            )
         self.noise = DEPTH_NOISE[spec.type.name] if noise else None
         self.world_from_camera = world_from_optical(spec.pose)
         self.camera_from_world = invert(self.world_from_camera)
         k = self.intrinsics
-        u = (np.arange(k.width, dtype=np.float64) - k.cx) / k.fx
-        v = (np.arange(k.height, dtype=np.float64) - k.cy) / k.fy
+        uu, vv = np.meshgrid(np.arange(k.width, dtype=np.float64), np.arange(k.height))
         rays = np.empty((k.height, k.width, 3))
-        rays[..., 0] = u[None, :]
-        rays[..., 1] = v[:, None]
+        rays[..., 0], rays[..., 1] = k.rays(uu, vv)
         rays[..., 2] = 1.0
         # World-frame ray direction per pixel, scaled so that t along it is the depth z.
         self._rays = (rays @ self.world_from_camera[:3, :3].T).astype(np.float32)
