@@ -36,7 +36,7 @@ from openptrack_py.detection.appearance import (
     signature_bins,
 )
 from openptrack_py.detection.background import BackgroundModel
-from openptrack_py.detection.frame import Frame, Intrinsics
+from openptrack_py.detection.frame import Frame, Intrinsics, image_box
 from openptrack_py.detection.ground import (
     GroundPlane,
     GroundTracker,
@@ -816,3 +816,16 @@ def test_a_distorted_depth_image_is_detected_through_its_lens(lens: tuple[float,
         errors[name] = np.linalg.norm(xy[:, None] - truth[None], axis=2).min(axis=0)
     assert errors["pinhole"].min() > 0.03, errors
     assert errors["lens"].max() < 0.015, errors
+
+
+def test_an_image_box_through_a_lens_covers_what_lies_beyond_its_fold() -> None:
+    """A lens's model turns back towards the centre beyond its fold (here 52 degrees off
+    the axis): an object reaching past it projects partly inside the image although it
+    covers the image's edge, so its box is the whole image; one inside stays tight."""
+    k = Intrinsics.for_sensor("kinect2").with_distortion((0.12, -0.072, 0.0, 0.0, -0.02))
+    corners = [(x, y, 1.0) for x in (0.31, 3.08) for y in (-0.1, 0.1)]  # 17-72 degrees
+    assert image_box(np.array(corners), k) == (0, k.width, 0, k.height)
+    near = np.array([(x, y, 1.0) for x in (0.1, 0.3) for y in (-0.1, 0.1)])
+    u0, u1, v0, v1 = image_box(near, k)
+    u, v = k.pixels(near)
+    assert u0 <= u.min() and u.max() < u1 <= u.max() + 5 and v0 <= v.min() and v.max() < v1

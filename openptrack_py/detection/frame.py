@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from openptrack_py.detection.lens import LENS_TERMS, distort, undistort
+from openptrack_py.detection.lens import LENS_TERMS, distort, undistort, unfolded
 from openptrack_py.errors import ConfigError
 from openptrack_py.sensor_types import SENSOR_TYPES
 
@@ -264,7 +264,8 @@ def image_box(cam: np.ndarray, k: Intrinsics, pad: int = 0) -> tuple[int, int, i
 
     The whole image when some point is at or behind the camera; ``pad`` more pixels on
     every side. Through a lens, straight edges bow: the midpoints of every pair of points
-    are projected too, and 2 more pixels padded.
+    are projected too, and 2 more pixels padded; and where a point lies beyond the lens's
+    fold (where its projection turns back into the image) the box is the whole image.
     """
     z = cam[:, 2]
     if z.max() <= 0.05:
@@ -273,7 +274,10 @@ def image_box(cam: np.ndarray, k: Intrinsics, pad: int = 0) -> tuple[int, int, i
         return 0, k.width, 0, k.height
     if k.has_lens:
         i, j = np.triu_indices(len(cam), 1)
-        u, v = k.pixels(np.concatenate([cam, 0.5 * (cam[i] + cam[j])]))
+        pts = np.concatenate([cam, 0.5 * (cam[i] + cam[j])])
+        if not unfolded(pts[:, 0] / pts[:, 2], pts[:, 1] / pts[:, 2], k.distortion).all():
+            return 0, k.width, 0, k.height
+        u, v = k.pixels(pts)
         pad += 2
     else:
         u = k.fx * cam[:, 0] / z + k.cx

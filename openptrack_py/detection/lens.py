@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LENS_TERMS", "distort", "jacobian", "undistort"]
+__all__ = ["LENS_TERMS", "distort", "jacobian", "undistort", "unfolded"]
 
 LENS_TERMS = ("k1", "k2", "p1", "p2", "k3")
 """Names of the model's coefficients, in OpenCV's order."""
@@ -78,6 +78,19 @@ def jacobian(x: np.ndarray, y: np.ndarray, coeffs: np.ndarray) -> tuple[np.ndarr
     return a, b, d
 
 
+def unfolded(x: np.ndarray, y: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
+    """Where the lens images normalised points ``(x, y)`` without folding (bool).
+
+    Beyond the fold the model's image turns back towards the centre: a point there
+    projects inside the image although no pixel sees it.
+    """
+    k1, k2, _, _, k3 = _terms(coeffs)
+    r2 = x * x + y * y
+    f = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    a, b, d = jacobian(x, y, coeffs)
+    return (a * d - b * b > 0.0) & (f > 0.0)
+
+
 def undistort(
     xd: np.ndarray, yd: np.ndarray, coeffs: np.ndarray, tolerance: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -116,9 +129,5 @@ def undistort(
             x = x - (d * ex - b * ey) / safe
             y = y - (a * ey - b * ex) / safe
         ex, ey = distort(x, y, coeffs)
-        a, b, d = jacobian(x, y, coeffs)
-        k1, k2, _, _, k3 = _terms(coeffs)
-        r2 = x * x + y * y
-        f = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        good = (a * d - b * b > 0.0) & (f > 0.0) & (np.hypot(ex - xd, ey - yd) <= tolerance)
+        good = unfolded(x, y, coeffs) & (np.hypot(ex - xd, ey - yd) <= tolerance)
     return np.where(good, x, np.nan), np.where(good, y, np.nan)

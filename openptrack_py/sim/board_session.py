@@ -25,6 +25,7 @@ import numpy as np
 
 from openptrack_py.calibration.checkerboard import Checkerboard
 from openptrack_py.detection.frame import Intrinsics
+from openptrack_py.detection.lens import unfolded
 from openptrack_py.geometry import invert, polygon_area, world_from_optical
 from openptrack_py.sensor_types import SENSOR_TYPES
 from openptrack_py.sim.boards import BOARD_THICKNESS_M
@@ -127,6 +128,8 @@ def _visible(
     z = outline[:, 2]
     if z.min() < kind.min_range_m or z.max() > kind.max_range_m:
         return False
+    if k.has_lens and not unfolded(outline[:, 0] / z, outline[:, 1] / z, k.distortion).all():
+        return False  # partly beyond the lens's fold: part of it is out of the image
     u, v = k.pixels(outline)
     if u.min() < margin_px or v.min() < margin_px:
         return False
