@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import threading
 from typing import Any
@@ -76,6 +77,11 @@ def main(argv: list[str] | None = None) -> int:
         "--multicast-scouting", action="store_true", help="also discover peers by UDP multicast"
     )
     args = parser.parse_args(argv)
+    if args.json:
+        # Zenoh writes its own log lines to stdout, where they would break the JSON
+        # lines a reader parses (seen: an ERROR on a sample for a key expression not
+        # yet declared, as a session starts): off, whatever RUST_LOG says.
+        os.environ["RUST_LOG"] = "off"
 
     key = SiteKeys(args.site).tracks_smoothed
     cfg = ZenohConfig(
