@@ -146,7 +146,6 @@ class BundleProblem:
         )
         k = np.array([[i.fx, i.fy, i.cx, i.cy] for i in intrinsics])
         self.refine_intrinsics = refine_intrinsics
-        self.lens = lens
         self.n_intrinsics = LENS_MODELS[lens] if refine_intrinsics else 0
         self.image_sizes = [(i.width, i.height) for i in intrinsics]
         self.given = np.hstack([k, np.zeros((len(k), 5))])  # (sensors, 9), no distortion
@@ -392,12 +391,13 @@ def solve(
     initial = huber_cost(problem.residuals(x0), huber_px)
     start = 3.0 * float(np.median(problem.view_errors(x0)[problem.mask]))
     x, iterations, budget = x0, 0, max_evaluations
+    pattern = problem.sparsity()
     for scale in ([start] if start > huber_px else []) + [huber_px]:
         first = scale != huber_px
         result = least_squares(
             problem.residuals,
             x,
-            jac_sparsity=problem.sparsity(),
+            jac_sparsity=pattern,
             method="trf",
             tr_solver="lsmr",
             tr_options={"atol": 1e-14, "btol": 1e-14, "maxiter": max(1000, 4 * problem.n_params)},
