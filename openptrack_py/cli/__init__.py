@@ -103,3 +103,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"openptrack {args.command}: {exc}", file=sys.stderr)
         return EXIT_CONFIG
+
+
+def console() -> int:
+    """The ``openptrack`` program: :func:`main` with its standard output its own.
+
+    Native libraries' writes to standard output (Zenoh's log lines) go to standard
+    error (:func:`~openptrack_py.cli.streams.separate_native_stdout`), so what a command
+    prints (JSON lines, tables) is never interleaved with them.
+    """
+    from openptrack_py.cli.streams import separate_native_stdout
+
+    separate_native_stdout()
+    return main()

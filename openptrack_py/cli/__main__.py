@@ -2,6 +2,6 @@
 
 import sys
 
-from openptrack_py.cli import main
+from openptrack_py.cli import console
 
-sys.exit(main())
+sys.exit(console())

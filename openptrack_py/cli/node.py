@@ -9,6 +9,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from openptrack_py.cli.common import EXIT_CONFIG
+from openptrack_py.cli.streams import restore_native_stdout
 
 if TYPE_CHECKING:
     from openptrack_py.cli.common import Subparsers
@@ -45,5 +46,6 @@ def run(args: argparse.Namespace) -> int:
         )
         return EXIT_CONFIG
     module = f"openptrack_py.nodes.{args.name}"
+    restore_native_stdout()
     os.execv(sys.executable, [sys.executable, "-m", module, *args.node_args])
     return 0  # pragma: no cover - execv does not return
