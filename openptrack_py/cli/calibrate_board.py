@@ -211,8 +211,9 @@ def _in_time_order(sources: dict[str, Any]) -> Iterator[tuple[float, str, Any]]:
 
 
 def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:
-    """Per sensor: views, reprojection RMS, the pose found (and refined focal lengths)."""
+    """Per sensor: views, reprojection RMS, the pose found (and refined intrinsics and lens)."""
     from openptrack_py.cli.common import pose_cells
+    from openptrack_py.detection.lens import LENS_TERMS
 
     report = calibration.report
     out = []
@@ -227,8 +228,13 @@ def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:
         )
         k = calibration.intrinsics.get(sid)
         if k is not None:
-            out[-1].update(fx=round(k.fx, 2), fy=round(k.fy, 2), k1=round(k.k1, 4))
+            pinhole = {"fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy}
+            out[-1].update((name, round(v, 2)) for name, v in pinhole.items())
+            lens = zip(LENS_TERMS, k.distortion, strict=True)
+            out[-1].update((name, round(float(c), 5)) for name, c in lens)
     columns = ["sensor", "views", "rms_px", "x", "y", "z", "yaw_deg", "pitch_deg", "roll_deg"]
     if calibration.intrinsics:
-        columns += ["fx", "fy", "k1"]
+        solved = [k.distortion for k in calibration.intrinsics.values()]
+        full = any(any(c != 0.0 for c in d[2:]) for d in solved)  # refined with --lens full
+        columns += ["fx", "fy", "cx", "cy", *LENS_TERMS[: 5 if full else 2]]
     return out, columns

@@ -420,3 +420,27 @@ def _serves(url: str) -> bool:
             return reply.status == 200
     except OSError:
         return False
+
+
+def test_the_checkerboard_table_shows_every_lens_term_it_solved() -> None:
+    """Refined intrinsics show their principal point and lens: k1, k2, and p1, p2, k3
+    once any sensor has them (``--lens full``)."""
+    from types import SimpleNamespace
+
+    from openptrack_py.cli.calibrate_board import rows
+    from openptrack_py.config.sensors import Pose
+    from openptrack_py.detection.lens import LENS_TERMS
+
+    nominal = Intrinsics.for_sensor("kinect2")
+    radial = nominal.with_distortion((0.09, -0.27, 0.0, 0.0, 0.0))
+    full = nominal.with_distortion((0.09, -0.27, 0.0012, -0.0004, 0.1))
+    for lenses, terms in (((radial, radial), LENS_TERMS[:2]), ((radial, full), LENS_TERMS)):
+        calibration = SimpleNamespace(
+            report=SimpleNamespace(views={"a": 9, "b": 7}, rms_px={"a": 0.2, "b": 0.3}),
+            poses=lambda: {"a": Pose(), "b": Pose()},
+            intrinsics=dict(zip("ab", lenses, strict=True)),
+        )
+        table, columns = rows(calibration)
+        assert columns[-len(terms) - 4 :] == ["fx", "fy", "cx", "cy", *terms]
+        assert table[0]["cx"] == round(nominal.cx, 2)
+        assert tuple(table[1][t] for t in LENS_TERMS) == lenses[1].distortion
