@@ -68,12 +68,12 @@ def units(seed: int, kind: str) -> list[SimSensor]:
     return out
 
 
-def one(job: tuple[int, str]) -> dict[str, object]:
+def one(job: tuple[int, str, int]) -> dict[str, object]:
     """Errors of every sensor of one rendered session, solved both ways."""
-    seed, kind = job
+    seed, kind, placements = job
     sensors = units(seed, kind)
-    session, obs = render_board_session(sensors, ACCEPTANCE_ROOM, placements=PLACEMENTS, seed=seed)
-    out: dict[str, object] = {"seed": seed, "kind": kind}
+    session, obs = render_board_session(sensors, ACCEPTANCE_ROOM, placements=placements, seed=seed)
+    out: dict[str, object] = {"seed": seed, "kind": kind, "placements": len(session.placements)}
     solves = [("nominal", False, "radial"), ("refined", True, "radial")]
     if kind == "lens":
         solves.append(("full", True, "full"))
@@ -120,8 +120,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--kinds", nargs="+", choices=("own", "nominal", "lens"), default=["own", "nominal"]
     )
+    parser.add_argument("--placements", type=int, default=PLACEMENTS, help="held by pairs")
     args = parser.parse_args(argv)
-    jobs = [(seed, kind) for seed in args.seeds for kind in args.kinds]
+    jobs = [(seed, kind, args.placements) for seed in args.seeds for kind in args.kinds]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         rows = list(pool.map(one, jobs))
     for row in rows:
