@@ -49,6 +49,10 @@ class CalibrationReport:
         ``least_squares`` cost (half the sum of robust squared residuals, px², the
         intrinsics' prior included when they are refined) before and after the final
         refinement.
+    rounds : int
+        Refinements run: one, and one more after each round of outlier rejection.
+    total_iterations : int
+        Jacobian evaluations of all of them.
     world_frame : str
         ``"floor board"`` or ``"reference pose"``.
     rejected_views : tuple of (str, float)
@@ -78,6 +82,8 @@ class CalibrationReport:
     world_frame: str
     rejected_views: tuple[tuple[str, float], ...] = ()
     rejected_corners: int = 0
+    rounds: int = 1
+    total_iterations: int = 0
     intrinsics_refined: bool = False
     intrinsics_sd: dict[str, tuple[float, ...]] = field(default_factory=dict)
     distortion_px: dict[str, float] = field(default_factory=dict)
@@ -91,6 +97,8 @@ class CalibrationReport:
             "pair_views": {f"{a}|{b}": n for (a, b), n in self.pair_views.items()},
             "placements": self.placements,
             "iterations": self.iterations,
+            "rounds": self.rounds,
+            "total_iterations": self.total_iterations,
             "initial_cost": self.initial_cost,
             "final_cost": self.final_cost,
             "world_frame": self.world_frame,

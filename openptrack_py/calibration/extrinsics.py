@@ -267,6 +267,8 @@ def _report(fit: _Fit, sensor_ids: Sequence[str], reference: str, frame: str) ->
         pair_views=pair_views(fit.observations, fit.placements),
         placements=len(fit.placements),
         iterations=fit.iterations,
+        rounds=fit.rounds,
+        total_iterations=fit.total_iterations,
         initial_cost=fit.initial_cost,
         final_cost=fit.final_cost,
         world_frame=frame,
@@ -325,6 +327,8 @@ class _Fit:
     initial_cost: float
     final_cost: float
     rejected_views: tuple[tuple[str, float], ...]
+    rounds: int
+    total_iterations: int
 
 
 def _fit(
@@ -340,6 +344,7 @@ def _fit(
     rejected: list[tuple[str, float]] = []
     cam_from_ref: dict[str, np.ndarray] | None = None  # after a rejection, the last solve's
     k_start: np.ndarray | None = None  # ... and its intrinsics
+    rounds = total = 0
     for _ in range(settings.max_rounds):
         placements = group_placements(observations, settings.tolerance_s)
         counts = pair_views(observations, placements)
@@ -360,6 +365,7 @@ def _fit(
         x, iterations, cost0, cost = solve(
             problem, x0, settings.huber_px, settings.max_evaluations
         )
+        rounds, total = rounds + 1, total + iterations
         drop, corners = _outliers(problem, x, flat, settings.reject_px)
         if not drop and not corners:
             break
@@ -371,7 +377,10 @@ def _fit(
         cam_from_ref = dict(zip(sensor_ids, problem.unpack(x)[0], strict=True))
         k_start = problem.intrinsics(x) if settings.refine_intrinsics else None
         _check_left(observations, sensor_ids, settings.reject_px)
-    return _Fit(problem, x, observations, placements, iterations, cost0, cost, tuple(rejected))
+    return _Fit(
+        problem, x, observations, placements, iterations, cost0, cost, tuple(rejected),
+        rounds, total,
+    )  # fmt: skip
 
 
 def _problem(

@@ -330,6 +330,7 @@ def test_noise_free_views_give_the_exact_poses_in_the_floor_boards_frame() -> No
     assert max(report.rms_px.values()) < 1e-6
     assert report.placements == len(boards)
     assert sum(report.views.values()) == len(obs)
+    assert report.rounds == 1 and report.total_iterations == report.iterations  # none rejected
 
 
 def test_noisy_views_and_a_bad_view_without_a_floor_board_use_the_reference_pose() -> None:
@@ -351,6 +352,9 @@ def test_noisy_views_and_a_bad_view_without_a_floor_board_use_the_reference_pose
     assert result.report.world_frame == "reference pose"
     assert result.report.rejected_views == ((bad.sensor_id, bad.stamp),)
     assert result.report.rejected_corners == 1
+    # a second refinement after the rejections; the iterations count both
+    assert result.report.rounds >= 2
+    assert result.report.total_iterations > result.report.iterations > 0
     assert max(result.report.rms_px.values()) < 0.3
     for sid, truth in sensors.items():
         err = pose_error(result.world_from_optical[sid], truth)
