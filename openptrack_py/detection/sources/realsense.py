@@ -27,6 +27,10 @@ class RealSenseBagSource(_SourceBase):
 
     Depth is aligned to the colour stream by the reader, so the intrinsics are the colour
     camera's. Stamps are the playback position, seconds from the start of the recording.
+    The reader's metadata carries the pinhole only (``RGBDVideoMetadata.intrinsics``, an
+    ``open3d.camera.PinholeCameraIntrinsic``), not the stream's lens terms, so frames
+    report no distortion; a sensor's lens comes from its calibration file's
+    ``intrinsics`` (``openptrack calibrate checkerboard --refine-intrinsics`` solves it).
 
     Parameters
     ----------
