@@ -67,3 +67,4 @@ def test_echo_prints_only_json_lines_while_zenoh_logs_at_debug() -> None:
     assert len(lines) == 5
     assert all(orjson.loads(x)["key"] == "opt/streams/a" for x in lines)
     assert "DEBUG" in err and "zenoh" in err
+    assert "\x1b[" not in err  # no colour codes when the logs do not go to a terminal

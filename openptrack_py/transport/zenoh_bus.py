@@ -12,6 +12,7 @@ import contextlib
 import errno
 import json
 import logging
+import os
 import socket
 import threading
 import time
@@ -38,9 +39,16 @@ _zenoh_log_done = False
 
 
 def _init_zenoh_logging() -> None:
+    """Zenoh's logger at ``RUST_LOG`` (``error`` if unset), without colour codes in files.
+
+    Zenoh writes to descriptor 1; when that is not a terminal (a pipe, a log file, the
+    launcher's prefixing), ``NO_COLOR`` (honoured by its logger) keeps ANSI escapes out.
+    """
     global _zenoh_log_done
     with _zenoh_log_once:
         if not _zenoh_log_done:
+            if not os.isatty(1):
+                os.environ.setdefault("NO_COLOR", "1")
             zenoh.init_log_from_env_or("error")
             _zenoh_log_done = True
 
