@@ -42,6 +42,7 @@ def test_writes_to_descriptor_1_go_to_stderr_and_prints_to_stdout_until_restored
 def test_echo_prints_only_json_lines_while_zenoh_logs_at_debug() -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     env = {**python_env(), "RUST_LOG": "debug"}  # Zenoh writes many lines as it works
+    env.pop("NO_COLOR", None)  # as a user's shell has it (this process's sessions set it)
     echo = subprocess.Popen(
         [*ECHO, "-n", "5", "-l", endpoint, "--no-multicast-scouting"],
         stdout=subprocess.PIPE,
