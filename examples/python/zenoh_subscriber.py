@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import threading
 from typing import Any
 
+from openptrack_py.cli.streams import separate_native_stdout
 from openptrack_py.config import ZenohConfig
 from openptrack_py.errors import OptError
 from openptrack_py.messages import TrackBatch, decode_track_batch
@@ -77,11 +77,6 @@ def main(argv: list[str] | None = None) -> int:
         "--multicast-scouting", action="store_true", help="also discover peers by UDP multicast"
     )
     args = parser.parse_args(argv)
-    if args.json:
-        # Zenoh writes its own log lines to stdout, where they would break the JSON
-        # lines a reader parses (seen: an ERROR on a sample for a key expression not
-        # yet declared, as a session starts): off, whatever RUST_LOG says.
-        os.environ["RUST_LOG"] = "off"
 
     key = SiteKeys(args.site).tracks_smoothed
     cfg = ZenohConfig(
@@ -130,4 +125,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    # Zenoh writes its own log lines to descriptor 1; as in the openptrack command, they
+    # go to stderr so they never break the JSON lines a reader parses.
+    separate_native_stdout()
     sys.exit(main())

@@ -31,10 +31,7 @@ def separate_native_stdout() -> bool:
         e.g. already replaced by a caller).
     """
     old = sys.stdout
-    try:
-        if old is None or old.fileno() != 1:
-            return False
-    except (AttributeError, OSError, ValueError, io.UnsupportedOperation):
+    if _descriptor(old) != 1:
         return False
     old.flush()
     kept = os.dup(1)  # not inherited by child processes
@@ -58,10 +55,15 @@ def restore_native_stdout() -> None:
     would go to standard error.
     """
     out = sys.stdout
-    try:
-        fd = out.fileno()
-    except (AttributeError, OSError, ValueError, io.UnsupportedOperation):
-        return
-    if fd != 1:
+    fd = _descriptor(out)
+    if fd is not None and fd != 1:
         out.flush()
         os.dup2(fd, 1)
+
+
+def _descriptor(stream: object) -> int | None:
+    """The file descriptor under ``stream``, or ``None`` (no stream, or not a file)."""
+    try:
+        return stream.fileno()  # type: ignore[attr-defined, no-any-return]
+    except (AttributeError, OSError, ValueError, io.UnsupportedOperation):
+        return None
