@@ -442,13 +442,26 @@ def _bracket(w: _Walker, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 def _interp(
     w: _Walker, tau: np.ndarray, *, raw: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Trajectory (smoothed, or raw detections) and velocity at ``tau``, with validity."""
+    """Trajectory and its velocity at ``tau``, with validity.
+
+    The smoothed trajectory is a cubic Hermite spline through the local fit's positions
+    and velocities, and the velocity returned is its exact derivative: the joint solve's
+    residuals and its Jacobian in the clock offsets describe one smooth function. Raw
+    detections (``raw``) are joined by straight lines (velocity: the lines' slopes).
+    """
     a, f, valid = _bracket(w, tau)
     b = np.minimum(a + 1, len(w.t) - 1)
-    src = w.xy if raw else w.smooth
-    pos = src[a] + f[:, None] * (src[b] - src[a])
-    vel = w.vel[a] + f[:, None] * (w.vel[b] - w.vel[a])
-    return pos, vel, valid
+    h = (w.t[b] - w.t[a])[:, None]
+    s = f[:, None]
+    if raw:
+        step = w.xy[b] - w.xy[a]
+        return w.xy[a] + s * step, step / np.where(h > 0, h, 1.0), valid
+    pa, pb, va, vb = w.smooth[a], w.smooth[b], w.vel[a] * h, w.vel[b] * h
+    s2, s3 = s * s, s * s * s
+    pos = (2 * s3 - 3 * s2 + 1) * pa + (s3 - 2 * s2 + s) * va + (3 * s2 - 2 * s3) * pb
+    pos += (s3 - s2) * vb
+    slope = (6 * s2 - 6 * s) * (pa - pb) + (3 * s2 - 4 * s + 1) * va + (3 * s2 - 2 * s) * vb
+    return pos, np.where(h > 0, slope / np.where(h > 0, h, 1.0), w.vel[a]), valid
 
 
 def _matches(wi: _Walker, wj: _Walker, lag: float) -> np.ndarray:
