@@ -68,15 +68,39 @@ def one_session(job: tuple[str, str, int, float]) -> dict[str, object]:
         if sid == ref:
             continue
         dist, yaw = result.poses[sid].error_to(truth)
+        spread = result.spread[sid]
         sensors.append(
             {
                 "sensor": sid,
                 "position_m": float(dist),
                 "yaw_deg": float(yaw),
                 "offset_s": float(abs(result.clock_offsets_s[sid] - offsets[sid])),
+                "spread_m": spread.position_m,
+                "spread_deg": spread.yaw_deg,
+                "spread_s": spread.clock_s,
             }
         )
     return {**head, "sensors": sensors}
+
+
+def _spread_shares(est: list[dict[str, float]]) -> dict[str, float]:
+    """Share of errors within 1 and 3 times the spread between the walk's halves.
+
+    Where the spread is the error's standard deviation, an error is within 1 times one
+    draw of it half the time and within 3 times about four times in five (the ratio of
+    two independent normal draws; nine in ten for the position, a ratio of two distances
+    in the plane).
+    """
+    out: dict[str, float] = {}
+    for key, err, spr in (
+        ("position", "position_m", "spread_m"),
+        ("heading", "yaw_deg", "spread_deg"),
+        ("clock", "offset_s", "spread_s"),
+    ):
+        ratio = np.array([s[err] / max(s[spr], 1e-12) for s in est])
+        out[f"{key}_within_spread"] = round(float((ratio <= 1).mean()), 2)
+        out[f"{key}_within_3_spreads"] = round(float((ratio <= 3).mean()), 2)
+    return out
 
 
 def summarise(rows: list[dict[str, object]]) -> list[dict[str, object]]:
@@ -119,6 +143,7 @@ def summarise(rows: list[dict[str, object]]) -> list[dict[str, object]]:
                     "worst_deg": round(float(yaw.max()), 3),
                     "median_ms": round(float(np.median(off)) * 1000, 1),
                     "worst_ms": round(float(off.max()) * 1000, 1),
+                    **_spread_shares(est),
                 }
             )
     return out

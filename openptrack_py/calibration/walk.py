@@ -69,7 +69,7 @@ import numpy as np
 
 from openptrack_py.calibration.walk_measure import Disagreement
 from openptrack_py.calibration.walk_pairs import _all_pairs, _chain, _check_graph, _Pair
-from openptrack_py.calibration.walk_result import PairReport, WalkCalibration, _finish
+from openptrack_py.calibration.walk_result import PairReport, Spread, WalkCalibration, _finish
 from openptrack_py.calibration.walk_settings import WalkSettings
 from openptrack_py.calibration.walk_solve import _anchor_mean, _Block, _solve
 from openptrack_py.calibration.walk_tracks import (
@@ -87,6 +87,7 @@ __all__ = [
     "Disagreement",
     "PairReport",
     "Pose2D",
+    "Spread",
     "WalkCalibration",
     "WalkSettings",
     "WalkTrack",
@@ -236,14 +237,19 @@ def calibrate_walk(
     chained = _state(ids, poses, offsets)
     free_pose = [i != ref for i in ids]
     solved, blocks = _solve(walkers, pairs, index, chained, free_pose, free_pose, s)
+    # each half of the walk solved on its own: how far they differ is the spread
+    halves = [
+        _solve(walkers, pairs, index, chained, free_pose, free_pose, s, 1 - f)[0] for f in (0, 1)
+    ]
     start, anchor = chained, ref
     if initial_poses is not None:
         start = _state(ids, initial_poses, {})
         solved = _anchor_mean(walkers, start, solved)
         anchor = "mean"
     return _finish(
-        "walk", anchor, ids, walkers, pairs, index, start, solved, blocks, s, refuse=False
-    )
+        "walk", anchor, ids, walkers, pairs, index, start, solved, blocks, s,
+        refuse=False, held_out=halves,
+    )  # fmt: skip
 
 
 def refine_walk(

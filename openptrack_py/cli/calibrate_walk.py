@@ -74,6 +74,8 @@ def walk(
     else:
         rows, columns = _pose_rows(result), ["sensor", "x", "y", "yaw_deg", "clock_offset_ms"]
         columns.append("residual_cm")
+    if result.spread:
+        columns += ["spread_cm", "spread_deg", "spread_ms"]
     print_rows(rows, columns, args.format)
     print(
         f"disagreement between sensors {result.before.binned_m:.3f} m -> "
@@ -205,9 +207,22 @@ def _pose_rows(result: Any) -> list[dict[str, Any]]:
             "yaw_deg": round(pose.yaw_deg, 3),
             "clock_offset_ms": round(1000 * float(result.clock_offsets_s.get(sid, 0.0)), 1),
             "residual_cm": round(100 * float(result.residual_m.get(sid, math.nan)), 2),
+            **_spread_row(result, sid),
         }
         for sid, pose in result.poses.items()
     ]
+
+
+def _spread_row(result: Any, sid: str) -> dict[str, float]:
+    """A sensor's spread between the walk's halves (empty where there is none)."""
+    spread = result.spread.get(sid)
+    if spread is None:
+        return {}
+    return {
+        "spread_cm": round(100 * spread.position_m, 2),
+        "spread_deg": round(spread.yaw_deg, 3),
+        "spread_ms": round(1000 * spread.clock_s, 1),
+    }
 
 
 def _entries(network: Any, result: Any, bases: dict | None = None) -> dict:
@@ -257,6 +272,7 @@ def _rows(session: Any, result: Any, reference: str) -> list[dict[str, Any]]:
                 "error_deg": round(abs(math.degrees(math.atan2(gap[1, 0], gap[0, 0]))), 3),
                 "clock_error_ms": round(1000 * clock, 1),
                 "residual_cm": round(100 * float(result.residual_m.get(sid, math.nan)), 2),
+                **_spread_row(result, sid),
             }
         )
     return rows

@@ -63,6 +63,9 @@ def test_walk_in_simulation_writes_poses_clock_offsets_and_a_plot(tmp_path: Path
     # seeds, not all; this one is checked against the looser bounds the solver meets
     assert all(r["error_cm"] <= 10 and r["error_deg"] <= 1.5 for r in rows), rows
     assert all(abs(r["clock_error_ms"]) <= 40 for r in rows), rows
+    # each sensor's spread between the walk's halves, 0 for the reference
+    assert [r["spread_cm"] for r in rows if r["sensor"] == "k2_a"] == [0.0]
+    assert all(0 < r["spread_cm"] < 20 and 0 < r["spread_ms"] < 100 for r in rows[1:]), rows
     assert plot.stat().st_size > 10_000
     entries = load_calibration(out).sensors
     assert {e.method for e in entries.values()} == {"walk"}
