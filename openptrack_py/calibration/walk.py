@@ -210,7 +210,8 @@ def calibrate_walk(
     Returns
     -------
     WalkCalibration
-        Always accepted.
+        Always accepted; its ``spread`` is half the difference between the solutions
+        fitted to the walk's two halves.
 
     Raises
     ------
