@@ -9,9 +9,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
+from openptrack_py.config import TrackerConfig
 from openptrack_py.errors import ConfigError
 from openptrack_py.eval.oracle import TruthFeed
+from openptrack_py.eval.reach import SensorReach
 from openptrack_py.eval.runner import Hypotheses, TrackerFeed, evaluate
+from openptrack_py.eval.trackers import tracking_feed
 from openptrack_py.messages import DetectionBatch, GroundTruthFrame, Track, TrackBatch
 from openptrack_py.sim import DEFAULT_START_TIME, build_scenario
 from openptrack_py.sim.simulator import SensorFrame, TruthFrame
@@ -244,3 +247,27 @@ def test_every_profile_reaches_the_simulator(profile: str) -> None:
 
     m = run_eval("crowd", duration_s=3.0, tracker="truth", profile=profile).metrics
     assert m.mota == 1.0 and m.duplicates == 0
+
+
+def test_a_person_counts_as_seen_for_a_second_after_a_detection() -> None:
+    reach = SensorReach(window_s=1.0)
+    assert reach.share() is None
+    reach.on_detections(0.0, (7, 0))  # 0: clutter, nobody
+    reach.on_truth(0.5, [7, 8])  # 7 seen 0.5 s ago, 8 never
+    reach.on_truth(1.0, [7])  # exactly the window
+    reach.on_truth(1.5, [7])  # 1.5 s ago
+    assert (reach.covered, reach.seen) == (4, 2)
+    assert reach.share() == 0.5
+
+
+def test_hidden_people_cap_what_a_tracker_scores_but_not_the_oracle() -> None:
+    # "occlusions": two people walk behind cabinets, in view but hidden from the sensor
+    occluded = build_scenario("occlusions", seed=3, duration_s=40.0, profile="realistic")
+    crowd = build_scenario("crowd", seed=4, duration_s=20.0, profile="realistic")
+    oracle = evaluate(occluded, _truth()).to_dict()
+    tracked = evaluate(occluded, tracking_feed(TrackerConfig())).to_dict()
+    assert oracle["seen"] == tracked["seen"] < 0.8  # the sensors' figure, not the feed's
+    assert oracle["mota"] == oracle["idf1"] == 1.0  # the oracle knows where hidden people are
+    assert tracked["mota"] <= tracked["seen"] + 0.02
+    assert tracked["idf1"] <= tracked["idf1_seen"] + 0.02
+    assert evaluate(crowd, _truth()).to_dict()["seen"] > 0.97

@@ -141,7 +141,8 @@ def _run_scenarios(args: argparse.Namespace) -> int:
             head = {"tracker": tracker} | ({"profile": profile} if profile else {})
             rows.append(head | result.to_dict())
     columns = ["scenario", "seed", "mota", "motp", "idf1", "id_switches", "fp", "fn"]
-    columns += ["duplicates", "returns", "returns_kept", "frames", "realtime_factor"]
+    columns += ["duplicates", "returns", "returns_kept", "seen", "idf1_seen", "frames"]
+    columns += ["realtime_factor"]
     print_rows(rows, columns, args.format)
     return 0
 

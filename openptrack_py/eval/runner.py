@@ -4,7 +4,9 @@ The harness is the same whatever produces the hypotheses:
 
 * Ground truth is sampled at every :class:`~openptrack_py.sim.simulator.TruthFrame`
   (30 Hz by default). Only people a sensor could see (``covered``: head inside some
-  field of view and range, occlusion ignored) count as objects to track.
+  field of view and range, occlusion ignored) count as objects to track. How many of
+  them a sensor detection had just reached (``seen``) is counted beside the metrics
+  (:mod:`openptrack_py.eval.reach`): a ceiling no tracker's figures can pass by much.
 * Hypotheses come from a :class:`HypothesisFeed`, asked for the tracks at each
   ground-truth time. :class:`TrackerFeed` runs a tracker on the sensor batches in
   arrival order and extrapolates its latest output to the ground-truth time with each
@@ -31,6 +33,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from openptrack_py.eval.metrics import MotAccumulator, MotMetrics
+from openptrack_py.eval.reach import SensorReach
 from openptrack_py.messages.detection import DetectionBatch
 from openptrack_py.messages.ground_truth import GroundTruthFrame
 from openptrack_py.messages.track import TrackBatch
@@ -202,6 +205,9 @@ class EvalResult:
         Wall-clock time of the run.
     tracker_ms_per_batch : float or None
         Mean tracker step time, when a tracker ran.
+    reach : SensorReach or None
+        What the sensors delivered (simulated runs, whose detections name their
+        person): ``seen`` and ``idf1_seen`` in :meth:`to_dict`.
     """
 
     metrics: MotMetrics
@@ -212,6 +218,7 @@ class EvalResult:
     batches: int
     wall_s: float
     tracker_ms_per_batch: float | None = None
+    reach: SensorReach | None = None
 
     def to_dict(self) -> dict[str, object]:
         """Flat JSON-ready mapping: run description first, then every metric."""
@@ -228,6 +235,10 @@ class EvalResult:
         if self.tracker_ms_per_batch is not None:
             out["tracker_ms_per_batch"] = round(self.tracker_ms_per_batch, 4)
         out.update(self.metrics.to_dict())
+        seen = None if self.reach is None else self.reach.share()
+        if seen is not None:
+            out["seen"] = round(seen, 4)
+            out["idf1_seen"] = round(2.0 * seen / (1.0 + seen), 4)
         return out
 
 
@@ -282,6 +293,7 @@ def evaluate(
         raise ValueError("evaluate: the scenario needs a finite duration_s")
     sim = _simulator(scenario, ground_truth_rate_hz, sensor_model)
     acc = MotAccumulator(max_distance_m)
+    reach = SensorReach()
     start = time.perf_counter()
     played = play(
         sim.events(),
@@ -291,6 +303,7 @@ def evaluate(
         warmup_s=warmup_s,
         start_time=sim.start_time,
         on_frame=on_frame,
+        reach=reach,
     )
     wall = time.perf_counter() - start
     return EvalResult(
@@ -302,6 +315,7 @@ def evaluate(
         batches=played.batches,
         wall_s=wall,
         tracker_ms_per_batch=tracker_ms_per_batch(feed),
+        reach=reach,
     )
 
 
@@ -351,6 +365,7 @@ def play(
     warmup_s: float = 0.0,
     start_time: float | None = None,
     on_frame: Callable[[float, GroundTruthFrame, Hypotheses | None], None] | None = None,
+    reach: SensorReach | None = None,
 ) -> Played:
     """Feed time-ordered events to ``feed``, scoring each ground-truth frame after the warm-up.
 
@@ -370,6 +385,8 @@ def play(
         Start of the run; the first ground-truth frame's time when not given.
     on_frame : callable, optional
         Called with every scored frame.
+    reach : SensorReach, optional
+        Told of every sensor frame's people and every scored frame's covered people.
 
     Returns
     -------
@@ -382,6 +399,8 @@ def play(
             played.batches += 1
             played.sensors.add(event.batch.sensor_id)
             feed.on_sensor_frame(event)
+            if reach is not None:
+                reach.on_detections(event.time, event.person_ids)
             continue
         if isinstance(event, SensorsEnded):
             ended = getattr(feed, "on_sensors_ended", None)
@@ -396,6 +415,8 @@ def play(
         if event.time - origin < warmup_s:
             continue
         _score_frame(event, feed, acc, max_distance_m, on_frame)
+        if reach is not None:
+            reach.on_truth(event.time, [p.id for p in event.frame.people if p.covered])
     return played
 
 
