@@ -83,7 +83,9 @@ class IdentityConfig(StrictModel):
     link_margin : float
         See ``link_evidence``.
     reid_min_s : float
-        A young track is observed this long before it may take a pooled identity.
+        A young track is observed this long before it may take a pooled identity. 0:
+        as soon as it is confirmed and its evidence passes the tests below (a wrong link
+        is undone by later evidence; a wait only delays the right ones).
     reid_mean_llr : float
         Least mean log-likelihood ratio of its observations against the pooled identity
         (a mean, not a sum: frames are not independent, and a sum would soon pass any
@@ -130,7 +132,7 @@ class IdentityConfig(StrictModel):
     evidence_per_observation: float = Field(0.2, gt=0.0, le=1.0)
     link_evidence: float = Field(3.0, gt=0.0, le=100.0)
     link_margin: float = Field(2.0, ge=0.0, le=100.0)
-    reid_min_s: float = Field(2.0, ge=0.0, le=600.0)
+    reid_min_s: float = Field(0.0, ge=0.0, le=600.0)
     reid_mean_llr: float = Field(1.0, gt=0.0, le=20.0)
     reid_margin: float = Field(0.5, ge=0.0, le=20.0)
     reid_min_posterior: float = Field(0.5, gt=0.0, lt=1.0)

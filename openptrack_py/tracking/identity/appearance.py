@@ -16,9 +16,9 @@
   for re-identification): a confirmed track that ends leaves its identity in a pool for
   ``pool_s``, with its colours over the visit (a longer memory than association's); a
   young track gathers evidence for each pooled identity it could be (one it could have
-  walked to since), and takes one back once, after ``reid_min_s``, its mean
-  log-likelihood ratio (colours and faces each averaged over the observations that carry
-  them, the two means added) passes ``reid_mean_llr`` and beats every rival by
+  walked to since), and takes one back once it is confirmed (and observed for
+  ``reid_min_s``, 0 by default) and its mean log-likelihood ratio (colours and faces
+  each averaged over the observations that carry them, the two means added) passes ``reid_mean_llr`` and beats every rival by
   ``reid_margin``, one-to-one (Hungarian). Evidence keeps coming in during the track's
   first ``reid_window_s``; a link it contradicts is undone and the identity goes back to
   the pool. A person the pool missed once (back under a new identity) would leave two
