@@ -18,12 +18,13 @@
   young track gathers evidence for each pooled identity it could be (one it could have
   walked to since), and takes one back once it is confirmed (and observed for
   ``reid_min_s``, 0 by default) and its mean log-likelihood ratio (colours and faces
-  each averaged over the observations that carry them, the two means added) passes ``reid_mean_llr`` and beats every rival by
-  ``reid_margin``, one-to-one (Hungarian). Evidence keeps coming in during the track's
-  first ``reid_window_s``; a link it contradicts is undone and the identity goes back to
-  the pool. A person the pool missed once (back under a new identity) would leave two
-  identities in it, splitting every later return; the newer replaces the older when it
-  is pooled, unless those it looked like were there at the same time (two people).
+  each averaged over the observations that carry them, the two means added) passes
+  ``reid_mean_llr`` and beats every rival by ``reid_margin``, one-to-one (Hungarian).
+  Evidence keeps coming in during the track's first ``reid_window_s``; a link it
+  contradicts is undone and the identity goes back to the pool. A person the pool
+  missed once (back under a new identity) would leave two identities in it, splitting
+  every later return; the newer replaces the older when it is pooled, unless those it
+  looked like were there at the same time (two people).
 * **Exchanged identities** (identity management in multi-target tracking): two tracks
   that met and, once apart, each look like the other's identity from before they met,
   take their identities back (:mod:`.swaps`).
