@@ -16,7 +16,7 @@ target above them is out of reach for every tracker.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 WINDOW_S = 1.0
 """A person detected this recently counts as seen (seconds)."""
@@ -35,9 +35,7 @@ class SensorReach:
     window_s: float = WINDOW_S
     covered: int = 0
     seen: int = 0
-
-    def __post_init__(self) -> None:
-        self._last: dict[int, float] = {}
+    _last: dict[int, float] = field(default_factory=dict, init=False, repr=False)
 
     def on_detections(self, time: float, person_ids: tuple[int, ...]) -> None:
         """A sensor frame arrived at ``time`` with these people behind its detections.
@@ -59,3 +57,8 @@ class SensorReach:
         if not self.covered:
             return None
         return self.seen / self.covered
+
+    def idf1(self) -> float | None:
+        """IDF1 of a tracker that follows exactly the seen frames, one identity each."""
+        s = self.share()
+        return None if s is None else 2.0 * s / (1.0 + s)

@@ -235,10 +235,11 @@ class EvalResult:
         if self.tracker_ms_per_batch is not None:
             out["tracker_ms_per_batch"] = round(self.tracker_ms_per_batch, 4)
         out.update(self.metrics.to_dict())
-        seen = None if self.reach is None else self.reach.share()
-        if seen is not None:
+        reach = self.reach
+        seen, idf1 = (None, None) if reach is None else (reach.share(), reach.idf1())
+        if seen is not None and idf1 is not None:
             out["seen"] = round(seen, 4)
-            out["idf1_seen"] = round(2.0 * seen / (1.0 + seen), 4)
+            out["idf1_seen"] = round(idf1, 4)
         return out
 
 
@@ -414,9 +415,9 @@ def play(
         origin = played.first_truth if start_time is None else start_time
         if event.time - origin < warmup_s:
             continue
-        _score_frame(event, feed, acc, max_distance_m, on_frame)
+        scored = _score_frame(event, feed, acc, max_distance_m, on_frame)
         if reach is not None:
-            reach.on_truth(event.time, [p.id for p in event.frame.people if p.covered])
+            reach.on_truth(event.time, scored)
     return played
 
 
@@ -426,8 +427,11 @@ def _score_frame(
     acc: MotAccumulator,
     max_distance_m: float,
     on_frame: Callable[[float, GroundTruthFrame, Hypotheses | None], None] | None,
-) -> None:
-    """Score the feed's hypotheses against the covered people of one ground-truth frame."""
+) -> list[int]:
+    """Score the feed's hypotheses against the covered people of one ground-truth frame.
+
+    Returns the ids of the covered people scored.
+    """
     people = event.frame.people
     covered = [p for p in people if p.covered]
     gt_ids = [p.id for p in covered]
@@ -437,10 +441,11 @@ def _score_frame(
         on_frame(event.time, event.frame, hyp)
     if hyp is None:
         acc.update_missing_frame(gt_ids, gt_xy, time_s=event.time)
-        return
+        return gt_ids
     uncovered = np.array([(p.x, p.y) for p in people if not p.covered]).reshape(-1, 2)
     hyp = _drop_dont_care(hyp, uncovered, max_distance_m)
     acc.update(gt_ids, gt_xy, hyp.ids, hyp.xy, time_s=event.time)
+    return gt_ids
 
 
 def tracker_ms_per_batch(feed: HypothesisFeed) -> float | None:
