@@ -105,8 +105,9 @@ class BundleProblem:
     refine_intrinsics : bool
         Also solve every sensor's ``fx, fy, cx, cy`` and lens distortion (of the given
         pixels, :mod:`openptrack_py.detection.lens`), 6 or 9 unknowns per sensor after
-        the placements' (``lens``), started from the given intrinsics and no
-        distortion, under the weak prior :data:`INTRINSIC_PRIOR` (as many more residuals
+        the placements' (``lens``), started from the given intrinsics and their lens
+        (a camera that reports its factory lens; none for most), under the weak prior
+        :data:`INTRINSIC_PRIOR` about them (as many more residuals
         per sensor, after the corners'). They are solved as departures from the given
         ones in units of the prior's standard deviations: all start at 0 and are of
         order 1, where raw focal lengths and image centres (hundreds of pixels) beside
@@ -148,7 +149,8 @@ class BundleProblem:
         self.refine_intrinsics = refine_intrinsics
         self.n_intrinsics = LENS_MODELS[lens] if refine_intrinsics else 0
         self.image_sizes = [(i.width, i.height) for i in intrinsics]
-        self.given = np.hstack([k, np.zeros((len(k), 5))])  # (sensors, 9), no distortion
+        lenses = np.array([i.distortion for i in intrinsics], dtype=float).reshape(-1, 5)
+        self.given = np.hstack([k.reshape(-1, 4), lenses])  # (sensors, 9)
         size = np.array([[i.fx, i.fy, i.width, i.height] + [1.0] * 5 for i in intrinsics])
         self._prior_sigma = (size * np.array(INTRINSIC_PRIOR))[:, : self.n_intrinsics]
         # Parameter block of each sensor (-1 for the reference).
@@ -192,7 +194,7 @@ class BundleProblem:
         """Parameter vector of ``(sensors, 4, 4)`` and ``(placements, 4, 4)`` poses.
 
         With refined intrinsics, ``intrinsics`` ``(sensors, 9)`` starts them (the given
-        ones and no distortion if omitted).
+        ones if omitted).
         """
         blocks = []
         for s in range(self.sensors):

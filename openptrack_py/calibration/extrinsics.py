@@ -45,14 +45,15 @@ module and re-exported here, as is
 (the CLI, a web page) polls while the board is moved.
 
 Pixels are those of an ideal pinhole: undistort corners first
-(:func:`openptrack_py.calibration.intrinsics.undistort_corners`), or give them raw and
-refine the intrinsics with the poses.
+(:func:`openptrack_py.calibration.intrinsics.undistort_corners`), or refine the
+intrinsics with the poses (corners a sensor's reported lens undistorted are then put
+back where that lens imaged them, and the lens is refined from it).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -64,6 +65,7 @@ from openptrack_py.calibration.bundle import (
     solve,
     view_outliers,
 )
+from openptrack_py.calibration.intrinsics import distort_corners
 from openptrack_py.calibration.observations import (
     BoardObservation,
     Placement,
@@ -190,8 +192,8 @@ def calibrate_extrinsics(
         Cap on residual evaluations per solve.
     refine_intrinsics : bool
         Also solve every sensor's focal lengths, principal point and lens distortion with
-        the poses, from ``intrinsics`` and no distortion, under a weak prior (the corners
-        should then be raw, not undistorted).
+        the poses, from ``intrinsics`` under a weak prior, on raw corners: those of a
+        sensor whose ``intrinsics`` have a lens were undistorted by it (:func:`_as_seen`).
     lens : {"radial", "full"}
         The lens terms solved: ``k1, k2`` or OpenCV's five (:mod:`.bundle`'s ``LENS_MODELS``).
 
@@ -217,6 +219,23 @@ def calibrate_extrinsics(
         fit, floor_stamp, tolerance_s, floor_pose, reference_world_from_camera
     )
     return _calibration(fit, sensor_ids, ref, world_from_ref, frame)
+
+
+def _as_seen(
+    observations: Sequence[BoardObservation], intrinsics: Mapping[str, Intrinsics]
+) -> list[BoardObservation]:
+    """The views with their corners where each sensor's reported lens imaged them.
+
+    A sensor that reports its lens (a factory's terms) has its corners undistorted by
+    it as the board is detected; a solve that refines the lens must see them as the
+    camera did, and start from that lens, so that what it finds is the camera's whole
+    lens, not what the reported one left.
+    """
+    out = []
+    for obs in observations:
+        k = intrinsics[obs.sensor_id]
+        out.append(replace(obs, corners=distort_corners(obs.corners, k)) if k.has_lens else obs)
+    return out
 
 
 def _reference(reference: str | None, sensor_ids: Sequence[str]) -> str:
@@ -340,6 +359,8 @@ def _fit(
 ) -> _Fit:
     """Chain, refine, reject outlying views and corners, refine again until none are left."""
     sensor_ids = list(intrinsics)
+    if settings.refine_intrinsics:
+        observations = _as_seen(observations, intrinsics)
     masks = [np.ones(len(object_points), dtype=bool) for _ in observations]
     rejected: list[tuple[str, float]] = []
     cam_from_ref: dict[str, np.ndarray] | None = None  # after a rejection, the last solve's

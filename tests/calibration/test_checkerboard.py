@@ -27,7 +27,11 @@ from openptrack_py.calibration.checkerboard import (
     project,
 )
 from openptrack_py.calibration.extrinsics import calibrate_extrinsics
-from openptrack_py.calibration.intrinsics import calibrate_intrinsics
+from openptrack_py.calibration.intrinsics import (
+    calibrate_intrinsics,
+    distort_corners,
+    undistort_corners,
+)
 from openptrack_py.calibration.observations import BoardObservation, group_placements
 from openptrack_py.calibration.progress import CalibrationProgress
 from openptrack_py.config import Pose
@@ -541,6 +545,61 @@ def test_units_whose_lenses_differ_from_the_nominal_are_calibrated_with_their_in
     assert refined.intrinsics_warnings() == []
     assert refined.report.distortion_px["c3"] > 1.0
     assert refined.intrinsics["c3"].k1 == refined.distortion["c3"][0]
+
+
+def test_undistorted_corners_go_back_where_the_lens_imaged_them() -> None:
+    """``distort_corners`` inverts ``undistort_corners`` over the whole image, for a
+    decentred five-term lens; a pinhole camera's corners are left as they are."""
+    k = Intrinsics.for_sensor("kinect2").with_distortion((0.1, -0.12, -0.003, -0.002, 0.06))
+    raw = np.random.default_rng(0).uniform((0, 0), (k.width, k.height), (500, 2))
+    flat = undistort_corners(raw, k, np.array(k.distortion))
+    assert np.abs(flat - raw).max() > 5.0  # the lens moves the corners by pixels
+    np.testing.assert_allclose(distort_corners(flat, k), raw, atol=1e-8)
+    pinhole = Intrinsics.for_sensor("kinect2")
+    np.testing.assert_array_equal(distort_corners(raw, pinhole), raw)
+
+
+def test_a_camera_reporting_its_factory_lens_gets_its_whole_lens_refined() -> None:
+    """A camera that reports its lens (a Kinect v2's driver reports its factory terms)
+    has its corners undistorted by it as they are detected. Refining the intrinsics
+    starts from that lens on the corners as the camera saw them, so the lens written is
+    the camera's whole lens (its ``k1`` within 0.02 of the truth where the factory's is
+    20 % off), not the little the factory lens left, and the poses are as good as from
+    raw corners."""
+    nominal = Intrinsics.for_sensor("kinect2")
+    sensors = ring(4)
+    units, reported = {}, {}
+    for i, (d, dc, k1) in enumerate([(0.02, 5, 0.09), (-0.02, -4, -0.08), (0.015, 3, 0.07),
+                                     (-0.02, 6, 0.1)]):  # fmt: skip
+        k = Intrinsics(512, 424, nominal.fx * (1 + d), nominal.fy * (1 + 0.9 * d),
+                       nominal.cx + dc, nominal.cy - dc)  # fmt: skip
+        units[f"c{i}"] = (k, np.array([k1, -k1, 0.0, 0.0, 0.0]))
+        reported[f"c{i}"] = nominal.with_distortion((0.8 * k1, -0.8 * k1))  # the factory's
+    boards = [*boards_among(sensors, 40, seed=1), floor_board((3.0, 2.5))]
+    raw = distorted_views(sensors, boards, units, noise_px=0.15, seed=5)
+    seen = [  # what the board detector delivers: corners undistorted by the reported lens
+        dataclasses.replace(o, corners=undistort_corners(
+            o.corners, reported[o.sensor_id], np.array(reported[o.sensor_id].distortion)))
+        for o in raw
+    ]  # fmt: skip
+    where = {"floor_stamp": 10.0 * (len(boards) - 1), "world_from_floor_board": boards[-1]}
+    refined = calibrate_extrinsics(
+        seen, reported, SIM_BOARD.object_points(), **where, refine_intrinsics=True
+    )
+    from_raw = calibrate_extrinsics(
+        raw, dict.fromkeys(sensors, nominal), SIM_BOARD.object_points(), **where,
+        refine_intrinsics=True,
+    )  # fmt: skip
+    for sid, truth in sensors.items():
+        k, dist = units[sid]
+        got = refined.intrinsics[sid]
+        assert got.k1 == pytest.approx(dist[0], abs=0.02), (sid, got.distortion, dist)
+        assert got.k1 == pytest.approx(from_raw.intrinsics[sid].k1, abs=0.01)
+        assert got.fx == pytest.approx(k.fx, rel=0.005)
+        assert refined.entries()[sid].intrinsics.distortion == got.distortion
+        error = pose_error(refined.world_from_optical[sid], truth)
+        assert error.translation_cm < 1.5 and error.rotation_deg < 0.1, (sid, error)
+    assert max(refined.report.rms_px.values()) < 0.25  # the corners' noise, 0.15 px per axis
 
 
 def test_a_decentred_lens_with_a_third_radial_term_is_solved_with_the_full_lens_model() -> None:
