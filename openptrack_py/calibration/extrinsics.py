@@ -163,7 +163,8 @@ def calibrate_extrinsics(
     observations : sequence of BoardObservation
         The board views of all sensors.
     intrinsics : mapping of str to Intrinsics
-        Every sensor to calibrate, with its pinhole model (of undistorted pixels).
+        Every sensor to calibrate, its pinhole (of undistorted pixels) and the lens its
+        corners were undistorted with, if any (as ``detect_board`` reports them).
     object_points : ndarray
         ``(n, 3)`` corners in the board frame
         (:meth:`~openptrack_py.calibration.checkerboard.Checkerboard.object_points`).
@@ -191,9 +192,8 @@ def calibrate_extrinsics(
     max_evaluations : int
         Cap on residual evaluations per solve.
     refine_intrinsics : bool
-        Also solve every sensor's focal lengths, principal point and lens distortion with
-        the poses, from ``intrinsics`` under a weak prior, on raw corners: those of a
-        sensor whose ``intrinsics`` have a lens were undistorted by it (:func:`_as_seen`).
+        Also solve every sensor's pinhole and lens with the poses, from ``intrinsics``
+        under a weak prior, on the corners as seen (:func:`_as_seen`).
     lens : {"radial", "full"}
         The lens terms solved: ``k1, k2`` or OpenCV's five (:mod:`.bundle`'s ``LENS_MODELS``).
 

@@ -235,6 +235,7 @@ def rows(calibration: Any) -> tuple[list[dict[str, Any]], list[str]]:
     columns = ["sensor", "views", "rms_px", "x", "y", "z", "yaw_deg", "pitch_deg", "roll_deg"]
     if calibration.intrinsics:
         solved = [k.distortion for k in calibration.intrinsics.values()]
-        full = any(any(c != 0.0 for c in d[2:]) for d in solved)  # refined with --lens full
+        # --lens full, or a reported lens whose p1, p2, k3 were kept
+        full = any(any(c != 0.0 for c in d[2:]) for d in solved)
         columns += ["fx", "fy", "cx", "cy", *LENS_TERMS[: 5 if full else 2]]
     return out, columns

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from collections.abc import Callable
@@ -301,6 +302,36 @@ def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
     lens_alone = _cli("checkerboard", "demo", "--sim", "--lens", "full")
     assert lens_alone.returncode != 0
     assert "--lens full is solved by --refine-intrinsics: add it" in lens_alone.stderr
+
+
+@pytest.mark.slow
+def test_checkerboard_recordings_of_cameras_reporting_a_lens_refine_their_whole_lens(
+    board_session: Path, tmp_path: Path
+) -> None:
+    """Recordings whose cameras report a lens (``intrinsics.json`` with ``k1``, ``k2``, as
+    a driver reports its factory terms) have their corners undistorted by it as the
+    board is found. These units draw through a plain pinhole, so the reported lens is
+    wrong: ``--refine-intrinsics`` refines it on the corners as the cameras saw them and
+    writes the whole lens, near none (before, it wrote what the reported lens left:
+    about its opposite), with the poses as good as without the claim."""
+    session = tmp_path / "session"
+    shutil.copytree(board_session, session)
+    for folder in session.iterdir():
+        meta = json.loads((folder / "intrinsics.json").read_text())
+        meta.update(k1=0.06, k2=-0.04)
+        (folder / "intrinsics.json").write_text(json.dumps(meta))
+    out = tmp_path / "calibration.yaml"
+    done = _cli("checkerboard", "demo", "--recordings", str(session), "--output", str(out),
+                "--format", "json", "--refine-intrinsics")  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    entries = load_calibration(out).sensors
+    anchor, true_anchor = entries["k2_a"].world_from_optical(), _true_pose("k2_a")
+    for sensor_id, entry in entries.items():
+        k = entry.intrinsics
+        assert k is not None and abs(k.distortion[0]) < 0.02, (sensor_id, k)
+        rel = np.linalg.inv(anchor) @ entry.world_from_optical()
+        true_rel = np.linalg.inv(true_anchor) @ _true_pose(sensor_id)
+        assert np.linalg.norm(rel[:3, 3] - true_rel[:3, 3]) < 0.02, sensor_id
 
 
 def test_checkerboard_recordings_name_a_missing_sensor(tmp_path: Path) -> None:
