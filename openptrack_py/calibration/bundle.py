@@ -145,12 +145,11 @@ class BundleProblem:
             if masks is None
             else np.stack([np.asarray(m, dtype=bool) for m in masks])
         )
-        k = np.array([[i.fx, i.fy, i.cx, i.cy] for i in intrinsics])
         self.refine_intrinsics = refine_intrinsics
         self.n_intrinsics = LENS_MODELS[lens] if refine_intrinsics else 0
         self.image_sizes = [(i.width, i.height) for i in intrinsics]
-        lenses = np.array([i.distortion for i in intrinsics], dtype=float).reshape(-1, 5)
-        self.given = np.hstack([k.reshape(-1, 4), lenses])  # (sensors, 9)
+        given = [[i.fx, i.fy, i.cx, i.cy, *i.distortion] for i in intrinsics]
+        self.given = np.array(given, dtype=float).reshape(-1, 9)  # INTRINSIC_NAMES per sensor
         size = np.array([[i.fx, i.fy, i.width, i.height] + [1.0] * 5 for i in intrinsics])
         self._prior_sigma = (size * np.array(INTRINSIC_PRIOR))[:, : self.n_intrinsics]
         # Parameter block of each sensor (-1 for the reference).

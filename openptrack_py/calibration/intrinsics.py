@@ -23,7 +23,6 @@ import numpy as np
 
 from openptrack_py.calibration.opencv import opencv
 from openptrack_py.detection.frame import Intrinsics
-from openptrack_py.detection.lens import distort
 from openptrack_py.errors import CalibrationError
 
 if TYPE_CHECKING:  # the board module uses undistort_corners: no import at run time
@@ -64,10 +63,9 @@ def undistort_corners(
 def distort_corners(corners: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
     """Undistorted corners back where the camera's own lens images them.
 
-    The inverse of :func:`undistort_corners` with the lens of ``intrinsics``
-    (:attr:`~openptrack_py.detection.frame.Intrinsics.distortion`): the lens model of
-    :mod:`openptrack_py.detection.lens` applied to each corner's ray, so a round trip
-    returns the raw corners to within 1e-9 px or so.
+    The inverse of :func:`undistort_corners` with the lens of ``intrinsics``: each
+    corner's ray imaged through it (:meth:`~openptrack_py.detection.frame.Intrinsics.pixels`),
+    so a round trip returns the raw corners to within 1e-9 px or so.
 
     Parameters
     ----------
@@ -85,8 +83,8 @@ def distort_corners(corners: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
     if not intrinsics.has_lens:
         return pts
     k = intrinsics
-    xd, yd = distort((pts[:, 0] - k.cx) / k.fx, (pts[:, 1] - k.cy) / k.fy, np.array(k.distortion))
-    return np.stack([xd * k.fx + k.cx, yd * k.fy + k.cy], axis=1)
+    rays = np.stack([(pts[:, 0] - k.cx) / k.fx, (pts[:, 1] - k.cy) / k.fy, np.ones(len(pts))], 1)
+    return np.stack(k.pixels(rays), axis=1)
 
 
 @dataclass(frozen=True, eq=False)

@@ -275,6 +275,14 @@ def test_checkerboard_from_each_sensors_recording_of_the_session(
     _assert_board_calibration(done, out)
 
 
+def _offset_from_k2_a_m(entries: dict, sensor_id: str) -> float:
+    """How far a calibrated sensor's position relative to ``k2_a`` is from the truth's, m."""
+    anchor = entries["k2_a"].world_from_optical()
+    rel = np.linalg.inv(anchor) @ entries[sensor_id].world_from_optical()
+    true_rel = np.linalg.inv(_true_pose("k2_a")) @ _true_pose(sensor_id)
+    return float(np.linalg.norm(rel[:3, 3] - true_rel[:3, 3]))
+
+
 @pytest.mark.slow
 def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
     board_session: Path, tmp_path: Path
@@ -289,14 +297,11 @@ def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
     rows = {r["sensor"]: r for r in json.loads(done.stdout)}
     assert all(abs(r["fx"] / nominal.fx - 1) < 0.01 for r in rows.values()), rows
     entries = load_calibration(out).sensors
-    anchor, true_anchor = entries["k2_a"].world_from_optical(), _true_pose("k2_a")
     for sensor_id, entry in entries.items():
         k = entry.intrinsics
         assert k is not None and (k.width, k.height) == (512, 424), sensor_id
         assert abs(k.fx / nominal.fx - 1) < 0.01 and len(k.distortion) == 5, sensor_id
-        rel = np.linalg.inv(anchor) @ entry.world_from_optical()
-        true_rel = np.linalg.inv(true_anchor) @ _true_pose(sensor_id)
-        assert np.linalg.norm(rel[:3, 3] - true_rel[:3, 3]) < 0.02, sensor_id
+        assert _offset_from_k2_a_m(entries, sensor_id) < 0.02, sensor_id
     both = _cli("checkerboard", "demo", "--sim", "--intrinsics", "--refine-intrinsics")
     assert both.returncode == 2 and "not allowed with argument" in both.stderr
     lens_alone = _cli("checkerboard", "demo", "--sim", "--lens", "full")
@@ -325,13 +330,10 @@ def test_checkerboard_recordings_of_cameras_reporting_a_lens_refine_their_whole_
                 "--format", "json", "--refine-intrinsics")  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     entries = load_calibration(out).sensors
-    anchor, true_anchor = entries["k2_a"].world_from_optical(), _true_pose("k2_a")
     for sensor_id, entry in entries.items():
         k = entry.intrinsics
         assert k is not None and abs(k.distortion[0]) < 0.02, (sensor_id, k)
-        rel = np.linalg.inv(anchor) @ entry.world_from_optical()
-        true_rel = np.linalg.inv(true_anchor) @ _true_pose(sensor_id)
-        assert np.linalg.norm(rel[:3, 3] - true_rel[:3, 3]) < 0.02, sensor_id
+        assert _offset_from_k2_a_m(entries, sensor_id) < 0.02, sensor_id
 
 
 def test_checkerboard_recordings_name_a_missing_sensor(tmp_path: Path) -> None:
