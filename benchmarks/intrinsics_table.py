@@ -8,11 +8,14 @@ Kinect v2 and an SR4500, 24 placements). Per seed, two kinds of units:
 * ``nominal``: each camera drawn with its type's pinhole;
 * ``lens``: its own pinhole as ``own``, and its own lens with all five of OpenCV's terms
   (``k1`` 0.03-0.12 either way, ``k2`` against it, ``p1``, ``p2`` up to 0.003, ``k3``
-  up to 0.02), traced by the renderer; its frames report the pinhole without the lens.
+  up to 0.02), traced by the renderer; its frames report the pinhole without the lens;
+* ``reported``: the ``lens`` units, whose frames report a factory calibration of their
+  pinhole and lens that is off by ``--factory-error`` times :data:`FACTORY_ERROR`.
 
-Each session is rendered once and solved twice, both given the type's nominal pinhole:
-as it is, and with ``refine_intrinsics`` (``lens`` sessions a third time, with
-``lens="full"``). Prints one JSON line per seed and kind (each
+Each session is rendered once and solved twice, given the type's nominal pinhole (a
+``reported`` unit: what it reports): as it is, and with ``refine_intrinsics``
+(``lens`` and ``reported`` sessions a third time, with ``lens="full"``). Prints one
+JSON line per seed and kind (each
 sensor's translation and rotation error, both solves), then the summary per kind and
 solve (estimates within 1 cm, median and worst translation, Kinect v2 within 0.2
 degrees, the SR4500's rotation range), the rows of ``docs/calibration.md``'s table.
@@ -21,6 +24,7 @@ Run from the repository root (about 3 minutes on 2 cores for ``own`` and ``nomin
 
     python -m benchmarks.intrinsics_table
     python -m benchmarks.intrinsics_table --kinds lens
+    python -m benchmarks.intrinsics_table --kinds reported --factory-error 0 0.5 1
 """
 
 from __future__ import annotations
@@ -45,11 +49,26 @@ SEEDS = tuple(range(2, 10))
 """Not looked at while the intrinsics were added (seeds 0 and 1 were)."""
 PLACEMENTS = 24
 
+FACTORY_ERROR = {"focal": 0.007, "centre_px": 4.0, "lens": (0.0075, 0.012, 0.0018, 0.0017, 0.014)}
+"""How far a factory calibration is from the unit at ``--factory-error 1`` (each term drawn
+uniformly within plus or minus it): the distance between a Kinect v2's factory lens
+(0.0905, -0.2706, 0.0012, -0.0008, 0.0967) and two units' lenses that users published
+after their own checkerboard calibration (libfreenect2's and iai_kinect2's issue
+trackers: (0.0979, -0.2823, 0.0004, 0.0009, 0.1060) and (0.0927, -0.2806, -0.0006,
+0.0004, 0.1108)), and between those two units' focal lengths (362.3 and 359.7 px, 0.7 %)
+and image centres (7.4 px apart: half of it each way). Different units, so an upper
+figure for one unit's factory error; no published pair of one unit's factory and
+checkerboard lenses was found."""
 
-def units(seed: int, kind: str) -> list[SimSensor]:
-    """The acceptance sensors, with their own pinholes (``own``, ``lens``) or their type's."""
+
+def units(seed: int, kind: str, factory_error: float = 1.0) -> list[SimSensor]:
+    """The acceptance sensors, with their own pinholes (``own``, ``lens``, ``reported``)
+    or their type's; ``reported`` units report a factory calibration ``factory_error``
+    times :data:`FACTORY_ERROR` off."""
     if kind == "nominal":
         return list(ACCEPTANCE_SENSORS)
+    if kind == "reported":
+        return [factory(u, seed, i, factory_error) for i, u in enumerate(units(seed, "lens"))]
     rng = np.random.default_rng(1000 + seed)
     lens_rng = np.random.default_rng(2000 + seed)
     out = []
@@ -68,14 +87,30 @@ def units(seed: int, kind: str) -> list[SimSensor]:
     return out
 
 
-def one(job: tuple[int, str, int]) -> dict[str, object]:
+def factory(unit: SimSensor, seed: int, index: int, scale: float) -> SimSensor:
+    """``unit`` reporting a factory calibration of its pinhole and lens, ``scale`` off."""
+    rng = np.random.default_rng([3000 + seed, index])
+    k = unit.intrinsics
+    assert k is not None
+    focal = 1 + scale * FACTORY_ERROR["focal"] * rng.uniform(-1, 1)
+    du, dv = scale * FACTORY_ERROR["centre_px"] * rng.uniform(-1, 1, 2) * k.width / 512
+    lens = np.array(k.distortion) + scale * np.array(FACTORY_ERROR["lens"]) * rng.uniform(-1, 1, 5)
+    reported = dataclasses.replace(
+        k, fx=k.fx * focal, fy=k.fy * focal, cx=k.cx + du, cy=k.cy + dv
+    ).with_distortion(tuple(lens))
+    return dataclasses.replace(unit, reported=reported)
+
+
+def one(job: tuple[int, str, int, float]) -> dict[str, object]:
     """Errors of every sensor of one rendered session, solved both ways."""
-    seed, kind, placements = job
-    sensors = units(seed, kind)
+    seed, kind, placements, factory_error = job
+    sensors = units(seed, kind, factory_error)
     session, obs = render_board_session(sensors, ACCEPTANCE_ROOM, placements=placements, seed=seed)
     out: dict[str, object] = {"seed": seed, "kind": kind, "placements": len(session.placements)}
+    if kind == "reported":
+        out["factory_error"] = factory_error
     solves = [("nominal", False, "radial"), ("refined", True, "radial")]
-    if kind == "lens":
+    if kind in ("lens", "reported"):
         solves.append(("full", True, "full"))
     for name, refine, lens in solves:
         result = solve_board_session(sensors, session, obs, refine_intrinsics=refine, lens=lens)
@@ -89,9 +124,13 @@ def one(job: tuple[int, str, int]) -> dict[str, object]:
 def summarise(rows: list[dict]) -> list[dict[str, object]]:
     """Per kind of unit and solve: the table's columns."""
     out = []
-    for kind in ("own", "nominal", "lens"):
+    groups = sorted({(r["kind"], r.get("factory_error")) for r in rows}, key=str)
+    for kind, factory_error in groups:
         for solve in ("nominal", "refined", "full"):
-            errs = [r[solve] for r in rows if r["kind"] == kind and solve in r]
+            errs = [
+                r[solve] for r in rows
+                if (r["kind"], r.get("factory_error")) == (kind, factory_error) and solve in r
+            ]  # fmt: skip
             if not errs:
                 continue
             trans = np.array([v[0] for e in errs for v in e.values()])
@@ -99,7 +138,7 @@ def summarise(rows: list[dict]) -> list[dict[str, object]]:
             sr = np.array([e["sr"][1] for e in errs])
             out.append(
                 {
-                    "units": kind,
+                    "units": kind if factory_error is None else f"{kind} x{factory_error:g}",
                     "solve": solve,
                     "within_1cm": f"{int((trans <= 1.0).sum())} of {len(trans)}",
                     "median_cm": round(float(np.median(trans)), 2),
@@ -118,11 +157,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS))
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument(
-        "--kinds", nargs="+", choices=("own", "nominal", "lens"), default=["own", "nominal"]
-    )
+        "--kinds", nargs="+", choices=("own", "nominal", "lens", "reported"),
+        default=["own", "nominal"],
+    )  # fmt: skip
+    parser.add_argument(
+        "--factory-error", type=float, nargs="+", default=[1.0],
+        help="reported units: their factory calibration's error, times FACTORY_ERROR",
+    )  # fmt: skip
     parser.add_argument("--placements", type=int, default=PLACEMENTS, help="held by pairs")
     args = parser.parse_args(argv)
-    jobs = [(seed, kind, args.placements) for seed in args.seeds for kind in args.kinds]
+    jobs = [
+        (seed, kind, args.placements, scale)
+        for seed in args.seeds
+        for kind in args.kinds
+        for scale in (args.factory_error if kind == "reported" else [1.0])
+    ]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         rows = list(pool.map(one, jobs))
     for row in rows:

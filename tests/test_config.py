@@ -30,7 +30,8 @@ CROWD = CONFIG_DIR / "crowd.yaml"  # no sensors at all
 
 SENSOR_KEYS = (
     "calibration, clock_offset_s, clutter_per_frame, frame_drop_probability, host, id, input, "
-    "latency_jitter_s, latency_s, miss_probability, pose, pose_error, rate_hz, source, type"
+    "latency_jitter_s, latency_s, miss_probability, pose, pose_error, rate_hz, sim_lens, source, "
+    "type"
 )
 
 
@@ -300,6 +301,31 @@ def test_pose_and_calibration_together() -> None:
     assert config.sensors[2].calibration == Path("c.yaml")
     config = load_network(DEMO, ["sensors.k2_c.calibration=c.yaml"])
     assert config.sensors[2].pose is not None and config.calibrated
+
+
+def test_a_simulated_lens_is_named_when_wrong() -> None:
+    config = load_network(
+        DEMO, ["sensors.k2_b.sim_lens={distortion: [0.09, -0.27], reported: [0.1]}"]
+    )
+    assert config.sensors[1].sim_lens is not None
+    assert config.sensors[1].sim_lens.reported == (0.1,)
+    (line,) = _problem_lines(_error(DEMO, ["sensors.k2_b.sim_lens={distortion: [0.1, 3.0]}"]))
+    assert line.startswith(
+        "sensors.1.sim_lens: distortion: every lens term must lie within -2 and 2"
+    ), line
+    (line,) = _problem_lines(
+        _error(DEMO, ["sensors.k2_b.sim_lens={distortion: [0, 0, 0, 0, 0, 0.1]}"])
+    )
+    assert line.startswith("sensors.1.sim_lens.distortion: "), line
+    lines = _problem_lines(_error(DEMO, ["sensors.k2_b.sim_lens={distortion: [.nan]}"]))
+    assert lines[0].startswith("sensors.1.sim_lens.distortion.0: input should be a finite"), lines
+    camera = [
+        "sensors.k2_c.source=camera",
+        "sensors.k2_c.input=realsense",
+        "sensors.k2_c.pose=null",
+    ]
+    (line,) = _problem_lines(_error(DEMO, [*camera, "sensors.k2_c.sim_lens={distortion: [0.1]}"]))
+    assert line.startswith("sensors.2: sim_lens: only a simulated sensor has one"), line
 
 
 def test_every_problem_is_reported_one_per_line(tmp_path: Path) -> None:

@@ -344,3 +344,40 @@ def test_a_lens_renders_what_opencv_remaps_the_pinhole_image_to(lens: tuple) -> 
     # ... which is not the pinhole image
     seen = both & np.isfinite(plain.depth)
     assert (np.abs(plain.depth - depth)[seen] > 0.03).mean() > 0.05
+
+
+KINECT2_LENS = (0.0927, -0.2806, -0.0006, 0.0004, 0.1108)
+FACTORY_LENS = (0.0905, -0.2706, 0.0012, -0.0008, 0.0967)
+
+
+def test_a_simulated_unit_draws_through_its_lens_and_reports_its_factory_one() -> None:
+    """``sim_lens``: the renderer traces rays through the unit's own lens, while its
+    frames carry the lens its driver reports (or none), as a real unit's do."""
+    from openptrack_py.eval.checkerboard import SimSensor
+
+    people = _snap([ALICE, BOB], t=0.7)
+    lens = {"distortion": KINECT2_LENS, "reported": FACTORY_LENS}
+    cfg = SensorConfig(id="cam", type="kinect2", pose=PERSON_POSE, sim_lens=lens)  # type: ignore[arg-type]
+    spec = SensorSpec.from_config(cfg)
+    shot = DepthRenderer(spec, ROOM, np.random.default_rng(0), noise=False).render(people)
+    pinhole = Intrinsics.for_sensor("kinect2")
+    traced = DepthRenderer(
+        _spec("kinect2", PERSON_POSE), ROOM, np.random.default_rng(0), noise=False,
+        intrinsics=pinhole.with_distortion(KINECT2_LENS),
+    ).render(people)  # fmt: skip
+    assert np.array_equal(shot.frame.depth, traced.frame.depth, equal_nan=True)
+    assert shot.frame.intrinsics == pinhole.with_distortion(FACTORY_LENS)
+    assert traced.frame.intrinsics == pinhole.with_distortion(KINECT2_LENS)
+    unit = SimSensor.from_config(cfg)
+    assert unit.intrinsics == pinhole.with_distortion(KINECT2_LENS)
+    assert unit.reports == unit.reported == pinhole.with_distortion(FACTORY_LENS)
+    # a driver that does not know its lens: the frames carry the plain pinhole
+    unknown = cfg.model_copy(
+        update={"sim_lens": cfg.sim_lens.model_copy(update={"reported": None})}
+    )  # type: ignore[union-attr]
+    shot = DepthRenderer(SensorSpec.from_config(unknown), ROOM, np.random.default_rng(0)).render(
+        people
+    )
+    assert shot.frame.intrinsics == pinhole
+    assert SimSensor.from_config(unknown).reports == pinhole
+    assert SimSensor.from_config(unknown).reported is None

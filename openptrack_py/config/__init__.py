@@ -49,7 +49,7 @@ from openptrack_py.config.output import (
 from openptrack_py.config.places import DoorConfig, ZoneConfig
 from openptrack_py.config.recorder import RecorderConfig
 from openptrack_py.config.security import SecurityConfig
-from openptrack_py.config.sensors import Pose, PoseError, SensorConfig
+from openptrack_py.config.sensors import Pose, PoseError, SensorConfig, SimLens
 from openptrack_py.config.sim import ScenarioName, SimConfig
 from openptrack_py.config.tracker import ROBUSTNESS_OFF, TrackerConfig
 from openptrack_py.config.zenoh import ZenohConfig
@@ -76,6 +76,7 @@ __all__ = [
     "SecurityConfig",
     "SensorConfig",
     "SimConfig",
+    "SimLens",
     "SmootherConfig",
     "StrictModel",
     "TrackerConfig",

@@ -54,6 +54,37 @@ class PoseError(StrictModel):
         )
 
 
+class SimLens(StrictModel):
+    """A simulated unit's lens, and the lens its driver reports with each frame.
+
+    OpenCV's terms in its order ``(k1, k2, p1, p2, k3)``, one to five of them (the rest
+    0). A real Kinect v2 or RealSense driver reports a factory calibration with its
+    frames; it is close to the unit's lens but not exact, which is why a checkerboard
+    calibration may refine it (``openptrack calibrate checkerboard --refine-intrinsics``).
+
+    Parameters
+    ----------
+    distortion : tuple of float
+        The unit's true lens: the renderer traces every pixel's ray through it.
+    reported : tuple of float, optional
+        The lens the unit's frames carry; ``None``: they carry none (a driver that does
+        not know its lens), and the detector sees the images as a plain pinhole's.
+    """
+
+    distortion: tuple[float, ...] = Field(min_length=1, max_length=5)
+    reported: tuple[float, ...] | None = Field(None, min_length=1, max_length=5)
+
+    @model_validator(mode="after")
+    def _bounded(self) -> SimLens:
+        for key, terms in (("distortion", self.distortion), ("reported", self.reported)):
+            for term in terms or ():
+                if abs(term) > 2.0:
+                    raise ValueError(
+                        f"{key}: every lens term must lie within -2 and 2, received {term}"
+                    )
+        return self
+
+
 class SensorConfig(StrictModel):
     """One depth sensor of the network.
 
@@ -93,6 +124,9 @@ class SensorConfig(StrictModel):
         Simulated probability that a whole frame is lost.
     pose_error : PoseError
         Simulated calibration error.
+    sim_lens : SimLens, optional
+        Simulated unit's own lens and the lens its frames report (rendered sensors and
+        checkerboard sessions); the type's distortion-free pinhole if omitted.
     input : str, optional
         Where a ``camera`` or ``recording`` sensor's frames come from, as for
         ``openptrack detect``: ``realsense[:SERIAL]``, ``azure-kinect[:N]``, a ``.bag``
@@ -113,6 +147,7 @@ class SensorConfig(StrictModel):
     clutter_per_frame: float | None = Field(None, ge=0.0, le=50.0)
     frame_drop_probability: float = Field(0.0, ge=0.0, le=1.0)
     pose_error: PoseError = Field(default_factory=PoseError)
+    sim_lens: SimLens | None = None
     input: str | None = None
 
     @model_validator(mode="after")
@@ -121,5 +156,9 @@ class SensorConfig(StrictModel):
             raise ValueError(
                 "give either 'pose' or 'calibration', not both (only a simulated sensor "
                 "takes both: its true placement and the calibration the pipeline uses)"
+            )
+        if self.sim_lens is not None and self.source != "sim":
+            raise ValueError(
+                f"sim_lens: only a simulated sensor has one (source is {self.source!r})"
             )
         return self

@@ -100,7 +100,7 @@ class SimBoardSource:
             )
         self.rig = rigs[0]
         self.name = f"simulated board session (seed {seed}, {placements} placements)"
-        self.intrinsics = self.rig.renderer.intrinsics
+        self.intrinsics = self.rig.renderer.reports
         self.speed = speed
         self._closed = False
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -71,13 +71,27 @@ class SimSensor:
         True pose in the world.
     intrinsics : Intrinsics, optional
         The unit's true pinhole (and lens) when it is not its type's nominal one (the
-        renderer draws with it; the calibration is still given the nominal one).
+        renderer draws with it).
+    reported : Intrinsics, optional
+        The camera model the unit's driver reports with its frames (a factory
+        calibration: near the truth, not exact), given to the calibration as a real
+        unit's frames give it. ``None``: its frames carry its pinhole without a lens (a
+        driver that does not know its lens) and the calibration is given its type's
+        nominal pinhole.
     """
 
     id: str
     type: str
     pose: Pose
     intrinsics: Intrinsics | None = None
+    reported: Intrinsics | None = None
+
+    @property
+    def reports(self) -> Intrinsics:
+        """The camera model its frames carry."""
+        if self.reported is not None:
+            return self.reported
+        return (self.intrinsics or Intrinsics.for_sensor(self.type)).with_distortion(())
 
     @classmethod
     def from_config(cls, cfg: SensorConfig) -> SimSensor:
@@ -90,7 +104,12 @@ class SimSensor:
         """
         if cfg.pose is None:
             raise ConfigError(f"sensors.{cfg.id}.pose: a simulated sensor needs a pose")
-        return cls(cfg.id, cfg.type, cfg.pose)
+        lens = cfg.sim_lens
+        if lens is None:
+            return cls(cfg.id, cfg.type, cfg.pose)
+        nominal = Intrinsics.for_sensor(cfg.type)
+        reported = None if lens.reported is None else nominal.with_distortion(lens.reported)
+        return cls(cfg.id, cfg.type, cfg.pose, nominal.with_distortion(lens.distortion), reported)
 
     def with_own_pinhole(self, focal: float, focal_y: float, du: float, dv: float) -> SimSensor:
         """The sensor as a unit with its own pinhole, off its type's nominal one.
@@ -287,7 +306,9 @@ def sensor_rigs(
         rigs.append(
             SensorRig(
                 sensor,
-                DepthRenderer(spec, room, rng, intrinsics=sensor.intrinsics),
+                DepthRenderer(
+                    spec, room, rng, intrinsics=sensor.intrinsics, reports=sensor.reports
+                ),
                 DepthRenderer(spec, room, rng, noise=False, intrinsics=sensor.intrinsics),
                 rng,
                 float(rng.uniform(0.0, 1.0 / spec.rate_hz)),
@@ -310,7 +331,7 @@ def _capture(
             views.append(view)
     if 2 * len(views) < frames or not views:
         return None
-    return average_views(views, board, rig.renderer.intrinsics)
+    return average_views(views, board, rig.renderer.reports)
 
 
 def placement_frames(
@@ -318,17 +339,17 @@ def placement_frames(
 ) -> Iterator[Frame]:
     """One sensor's ``frames`` consecutive frames of one placement, the board drawn in.
 
-    A unit with a lens reports its pinhole without it, as a driver that does not know
-    its lens does: its corners are then found raw, for the calibration to solve the lens.
+    The frames carry the camera model the unit reports (:attr:`SimSensor.reports`): a
+    unit whose driver does not know its lens gives its corners raw, for the calibration
+    to solve the lens; one that reports a lens has them undistorted by it.
     """
     renderer = rig.renderer
-    lens = renderer.intrinsics.has_lens
     period = 1.0 / rig.sensor.spec().rate_hz
     stamp = placement.stamp + rig.phase
     snap = holder_snapshot(placement, stamp)
     scene = rig.truth.render(snap, stamp, seq).frame.depth
     for i in range(frames):
-        frame = draw_board(
+        yield draw_board(
             renderer.render(snap, stamp + i * period, seq),
             board,
             placement.world_from_board,
@@ -338,7 +359,6 @@ def placement_frames(
             rng=rig.rng,
             scene_depth=scene,
         ).frame
-        yield replace(frame, intrinsics=frame.intrinsics.with_distortion(())) if lens else frame
 
 
 def record_board_session(
@@ -455,7 +475,8 @@ def solve_board_session(
     ways.
     """
     floor = session.floor
-    intrinsics = {s.id: Intrinsics.for_sensor(s.type) for s in sensors}
+    # what each unit reports, or its type's nominal pinhole
+    intrinsics = {s.id: s.reported or Intrinsics.for_sensor(s.type) for s in sensors}
     if estimate_intrinsics:
         intrinsics, observations = refit_intrinsics(observations, sensors, board)
     calibration = calibrate_extrinsics(

@@ -80,7 +80,7 @@ class SimDepthSource:
         self.renderer = DepthRenderer(
             self.spec, scenario.room, np.random.default_rng([scenario.seed, 41, index])
         )
-        self.intrinsics: Intrinsics | None = self.renderer.intrinsics
+        self.intrinsics: Intrinsics | None = self.renderer.reports
         self._stop = threading.Event()
 
     def frames(self) -> Iterator[Frame]:

@@ -166,9 +166,13 @@ class DepthRenderer:
     rng : numpy.random.Generator
         Noise source.
     intrinsics : Intrinsics, optional
-        Override the type's nominal intrinsics: a unit's own pinhole, and its lens (each
-        pixel's ray is traced through it; pixels where the lens cannot be inverted see
-        nothing).
+        Override the spec's camera model (its type's pinhole and the unit's lens, if
+        any): a unit's own pinhole, and its lens (each pixel's ray is traced through it;
+        pixels where the lens cannot be inverted see nothing).
+    reports : Intrinsics, optional
+        The camera model the frames carry, as the unit's driver reports it: by default
+        ``intrinsics`` when given, else the spec's reported model (a factory lens, or
+        none).
     noise : bool
         Apply the sensor type's depth degradation.
     """
@@ -180,12 +184,14 @@ class DepthRenderer:
         rng: np.random.Generator,
         *,
         intrinsics: Intrinsics | None = None,
+        reports: Intrinsics | None = None,
         noise: bool = True,
     ) -> None:
         self.spec = spec
         self.room = room
         self.rng = rng
-        self.intrinsics = intrinsics or Intrinsics.for_sensor(spec.type.name)
+        self.intrinsics = intrinsics or spec.intrinsics
+        self.reports = reports or intrinsics or spec.reported_intrinsics
         self.noise = DEPTH_NOISE[spec.type.name] if noise else None
         self.world_from_camera = world_from_optical(spec.pose)
         self.camera_from_world = invert(self.world_from_camera)
@@ -376,7 +382,9 @@ class DepthRenderer:
         visible = np.bincount(labels[labels >= 0], minlength=n)[:n]
         head_visible = np.bincount(labels[parts == 0], minlength=n)[:n]
         measured = self._degrade(depth, grazing)
-        frame = Frame(stamp=stamp, seq=seq, intrinsics=k, depth=measured, color=rgb, intensity=ir)
+        frame = Frame(
+            stamp=stamp, seq=seq, intrinsics=self.reports, depth=measured, color=rgb, intensity=ir
+        )
         return RenderedFrame(frame, labels, snap.ids.copy(), visible, body, head_visible, head)
 
     def _draw_person(

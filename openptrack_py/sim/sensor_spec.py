@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from openptrack_py.calibration.files import SensorCalibration
-from openptrack_py.config import Pose, PoseError, SensorConfig
+from openptrack_py.config import Pose, PoseError, SensorConfig, SimLens
 from openptrack_py.detection.appearance import signature_length
+from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.errors import ConfigError
 from openptrack_py.sensor_types import SENSOR_TYPES, SensorType
 
@@ -117,6 +118,9 @@ class SensorSpec:
         The network's calibration entry for this sensor: detections are then reported
         through its pose (not ``pose`` + ``pose_error``) and stamps corrected by its clock
         offset, as a calibrated sensor's node does.
+    lens : SimLens, optional
+        The unit's own lens and the one its frames report (rendered sensors only); the
+        type's distortion-free pinhole if ``None``.
     """
 
     id: str
@@ -133,6 +137,21 @@ class SensorSpec:
     phase_s: float = 0.0
     noise_override: SensorNoise | None = None
     calibration: SensorCalibration | None = None
+    lens: SimLens | None = None
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        """The unit's true camera model: its type's pinhole, with its own lens if any."""
+        nominal = Intrinsics.for_sensor(self.type.name)
+        return nominal if self.lens is None else nominal.with_distortion(self.lens.distortion)
+
+    @property
+    def reported_intrinsics(self) -> Intrinsics:
+        """The camera model its frames carry: the pinhole, with the lens it reports if any."""
+        nominal = Intrinsics.for_sensor(self.type.name)
+        if self.lens is None or self.lens.reported is None:
+            return nominal
+        return nominal.with_distortion(self.lens.reported)
 
     @property
     def clock_correction_s(self) -> float:
@@ -184,4 +203,5 @@ class SensorSpec:
             pose_error=cfg.pose_error,
             phase_s=phase_s,
             calibration=calibration,
+            lens=cfg.sim_lens,
         )

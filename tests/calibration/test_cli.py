@@ -352,7 +352,10 @@ def test_checkerboard_live_from_each_sensors_board_node(
 ) -> None:
     """Each sensor's machine runs ``openptrack node board`` on its frames (a recording,
     or a simulated sensor's rendering); ``calibrate checkerboard --live`` gathers their
-    reports over Zenoh and solves; the web view shows the session's progress."""
+    reports over Zenoh and solves; the web view shows the session's progress. ``k2_b``
+    is a unit with its own lens whose frames report it (as a Kinect v2's driver reports
+    its factory lens): its corners are undistorted by it on its machine, and the lens
+    reaches the master with its views."""
     web = pytest.importorskip("tests.test_web")
     from tests.conftest import free_port, stop_process, wait_for
 
@@ -362,6 +365,8 @@ def test_checkerboard_live_from_each_sensors_board_node(
     net["zenoh"]["hub"] = None
     net["outputs"][0]["udp"] = []
     net["outputs"][0]["web"] = {"host": "127.0.0.1", "port": web_port, "room": [0, 0, 8, 6]}
+    lens = [0.0927, -0.2806, -0.0006, 0.0004, 0.1108]
+    net["sensors"][1]["sim_lens"] = {"distortion": lens, "reported": lens}
     network = tmp_path / "net.yaml"
     network.write_text(yaml.safe_dump(net))
     zenoh = ("-e", endpoint, "--no-multicast-scouting")
