@@ -12,9 +12,10 @@ Kinect v2 and an SR4500, 24 placements). Per seed, two kinds of units:
 * ``reported``: the ``lens`` units, whose frames report a factory calibration of their
   pinhole and lens that is off by ``--factory-error`` times :data:`FACTORY_ERROR`.
 
-Each session is rendered once and solved twice, given the type's nominal pinhole (a
-``reported`` unit: what it reports): as it is, and with ``refine_intrinsics``
-(``lens`` and ``reported`` sessions a third time, with ``lens="full"``). Prints one
+Each session is rendered once and solved several ways, given the type's nominal pinhole
+(a ``reported`` unit: what it reports): as it is, and with ``refine_intrinsics``, each
+sensor's refinement kept where its views show the given intrinsics wrong and kept
+always (``lens`` and ``reported`` sessions also with ``lens="full"``). Prints one
 JSON line per seed and kind (each
 sensor's translation and rotation error, both solves), then the summary per kind and
 solve (estimates within 1 cm, median and worst translation, Kinect v2 within 0.2
@@ -37,6 +38,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from openptrack_py.calibration.evidence import REFINE_LEVEL
 from openptrack_py.eval.checkerboard import (
     ACCEPTANCE_ROOM,
     ACCEPTANCE_SENSORS,
@@ -87,6 +89,11 @@ def units(seed: int, kind: str, factory_error: float = 1.0) -> list[SimSensor]:
     return out
 
 
+SOLVES = ("nominal", "refined", "refined always", "full", "full always")
+"""The solves of a session: given intrinsics; refined where the views show them wrong
+(radial, then the whole lens); refined whatever the views show."""
+
+
 def factory(unit: SimSensor, seed: int, index: int, scale: float) -> SimSensor:
     """``unit`` reporting a factory calibration of its pinhole and lens, ``scale`` off."""
     rng = np.random.default_rng([3000 + seed, index])
@@ -112,12 +119,18 @@ def one(job: tuple[int, str, int, float]) -> dict[str, object]:
     solves = [("nominal", False, "radial"), ("refined", True, "radial")]
     if kind in ("lens", "reported"):
         solves.append(("full", True, "full"))
+    solves += [(f"{name} always", True, lens) for name, refine, lens in solves if refine]
     for name, refine, lens in solves:
-        result = solve_board_session(sensors, session, obs, refine_intrinsics=refine, lens=lens)
+        level = None if name.endswith("always") else REFINE_LEVEL
+        result = solve_board_session(
+            sensors, session, obs, refine_intrinsics=refine, lens=lens, refine_level=level
+        )
         out[name] = {
             s: [round(e.translation_cm, 3), round(e.rotation_deg, 4)]
             for s, e in result.errors.items()
         }
+        if refine and level is not None:
+            out[f"{name} kept"] = result.calibration.report.intrinsics_kept
     return out
 
 
@@ -126,7 +139,7 @@ def summarise(rows: list[dict]) -> list[dict[str, object]]:
     out = []
     groups = sorted({(r["kind"], r.get("factory_error")) for r in rows}, key=str)
     for kind, factory_error in groups:
-        for solve in ("nominal", "refined", "full"):
+        for solve in SOLVES:
             errs = [
                 r[solve] for r in rows
                 if (r["kind"], r.get("factory_error")) == (kind, factory_error) and solve in r

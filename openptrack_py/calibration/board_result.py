@@ -14,6 +14,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
+from openptrack_py.calibration.evidence import IntrinsicsEvidence
 from openptrack_py.calibration.files import CameraIntrinsics, SensorCalibration
 from openptrack_py.config import Pose
 from openptrack_py.detection.frame import Intrinsics
@@ -69,6 +70,11 @@ class CalibrationReport:
     distortion_px : dict
         Per sensor, when refined: how far its distortion moves a corner it saw, at most,
         pixels.
+    intrinsics_evidence : dict
+        Per sensor, when refined and tested: what its views say of its given intrinsics
+        (:class:`~openptrack_py.calibration.evidence.IntrinsicsEvidence`: the rise of
+        the corners' squared error with them held as given, in noise variances, and the
+        threshold it had to exceed for the refinement to be kept).
     """
 
     reference: str
@@ -87,6 +93,12 @@ class CalibrationReport:
     intrinsics_refined: bool = False
     intrinsics_sd: dict[str, tuple[float, ...]] = field(default_factory=dict)
     distortion_px: dict[str, float] = field(default_factory=dict)
+    intrinsics_evidence: dict[str, IntrinsicsEvidence] = field(default_factory=dict)
+
+    @property
+    def intrinsics_kept(self) -> list[str]:
+        """Sensors whose given intrinsics were kept: their views did not show them wrong."""
+        return [s for s, e in self.intrinsics_evidence.items() if not e.refined]
 
     def to_dict(self) -> dict:
         """JSON-ready dict (pairs as ``"a|b"`` keys)."""
@@ -107,6 +119,10 @@ class CalibrationReport:
             "intrinsics_refined": self.intrinsics_refined,
             "intrinsics_sd": {s: list(v) for s, v in self.intrinsics_sd.items()},
             "distortion_px": dict(self.distortion_px),
+            "intrinsics_evidence": {
+                s: {"statistic": e.statistic, "threshold": e.threshold, "refined": e.refined}
+                for s, e in self.intrinsics_evidence.items()
+            },
         }
 
 
@@ -171,9 +187,16 @@ class ExtrinsicCalibration:
         A focal length whose standard deviation exceeds ``focal_sd`` (a fraction) is
         poorly determined by the views, and the poses with it; a lens whose fitted
         distortion cannot be inverted out to the image's corners leaves the detector
-        blind there (strong radial terms fitted from views near the centre).
+        blind there (strong radial terms fitted from views near the centre). A sensor
+        whose views did not show its given intrinsics wrong kept them.
         """
-        out = []
+        out = [
+            f"{sid}: intrinsics kept as given: refining them lowered the corners' squared "
+            f"error by {e.statistic:.1f} noise variances, {e.threshold:.1f} would show them "
+            "wrong (--refine-intrinsics always refines anyway)"
+            for sid, e in self.report.intrinsics_evidence.items()
+            if not e.refined
+        ]
         for sid, k in self.intrinsics.items():
             sd = self.report.intrinsics_sd.get(sid)
             if sd is not None and max(sd[0] / k.fx, sd[1] / k.fy) > focal_sd:

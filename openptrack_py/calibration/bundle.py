@@ -14,6 +14,7 @@ before solving again (as Kalibr rejects corners).
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
 
@@ -115,6 +116,9 @@ class BundleProblem:
         from the solution, on units whose lens moves corners by pixels.
     lens : {"radial", "full"}
         The lens terms solved with ``refine_intrinsics`` (:data:`LENS_MODELS`).
+    fixed : sequence of bool, optional
+        Per sensor: its intrinsics stay as given while the others' are refined (its
+        unknowns remain, held at 0 by the prior and moving nothing).
     """
 
     def __init__(
@@ -127,6 +131,7 @@ class BundleProblem:
         masks: Sequence[np.ndarray] | None = None,
         refine_intrinsics: bool = False,
         lens: str = "radial",
+        fixed: Sequence[bool] | None = None,
     ) -> None:
         if lens not in LENS_MODELS:
             raise ValueError(f"lens: {lens!r} is not one of {', '.join(LENS_MODELS)}")
@@ -151,11 +156,25 @@ class BundleProblem:
         given = [[i.fx, i.fy, i.cx, i.cy, *i.distortion] for i in intrinsics]
         self.given = np.array(given, dtype=float).reshape(-1, 9)  # INTRINSIC_NAMES per sensor
         size = np.array([[i.fx, i.fy, i.width, i.height] + [1.0] * 5 for i in intrinsics])
-        self._prior_sigma = (size * np.array(INTRINSIC_PRIOR))[:, : self.n_intrinsics]
+        self._prior_full = (size * np.array(INTRINSIC_PRIOR))[:, : self.n_intrinsics]
+        self.fixed = np.zeros(self.sensors, dtype=bool)
+        self._prior_sigma = self._prior_full
+        if fixed is not None:
+            self._fix(fixed)
         # Parameter block of each sensor (-1 for the reference).
         order = [s for s in range(self.sensors) if s != reference]
         self.sensor_block = np.full(self.sensors, -1, dtype=int)
         self.sensor_block[order] = np.arange(len(order))
+
+    def _fix(self, fixed: Sequence[bool]) -> None:
+        self.fixed = np.asarray(fixed, dtype=bool).copy()
+        self._prior_sigma = np.where(self.fixed[:, None], 0.0, self._prior_full)
+
+    def with_fixed(self, fixed: Sequence[bool]) -> BundleProblem:
+        """The same problem with the intrinsics of the ``fixed`` sensors held as given."""
+        out = copy.copy(self)
+        out._fix(fixed)
+        return out
 
     @property
     def n_sensor_params(self) -> int:
@@ -206,7 +225,10 @@ class BundleProblem:
         if self.refine_intrinsics:
             if intrinsics is not None:
                 solved = slice(0, self.n_intrinsics)
-                start = (intrinsics - self.given)[:, solved] / self._prior_sigma
+                moved = (intrinsics - self.given)[:, solved]
+                start = np.divide(
+                    moved, self._prior_sigma, out=np.zeros_like(moved), where=self._prior_sigma > 0
+                )
                 blocks.append(start.ravel())
             else:
                 blocks.append(np.zeros(self.n_intrinsics * self.sensors))

@@ -53,7 +53,7 @@ back where that lens imaged them, and the lens is refined from it).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -65,6 +65,7 @@ from openptrack_py.calibration.bundle import (
     solve,
     view_outliers,
 )
+from openptrack_py.calibration.evidence import REFINE_LEVEL, IntrinsicsEvidence, weigh_intrinsics
 from openptrack_py.calibration.intrinsics import distort_corners
 from openptrack_py.calibration.observations import (
     BoardObservation,
@@ -155,6 +156,7 @@ def calibrate_extrinsics(
     max_evaluations: int = 200,
     refine_intrinsics: bool = False,
     lens: str = "radial",
+    refine_level: float | None = REFINE_LEVEL,
 ) -> ExtrinsicCalibration:
     """Every sensor's pose from checkerboard views (Munaro et al., OpenPTrack, §4).
 
@@ -166,29 +168,25 @@ def calibrate_extrinsics(
         Every sensor to calibrate, its pinhole (of undistorted pixels) and the lens its
         corners were undistorted with, if any (as ``detect_board`` reports them).
     object_points : ndarray
-        ``(n, 3)`` corners in the board frame
-        (:meth:`~openptrack_py.calibration.checkerboard.Checkerboard.object_points`).
+        ``(n, 3)`` corners in the board frame (``Checkerboard.object_points``).
     reference : str, optional
         The sensor held fixed during the solve; the first of ``intrinsics`` by default.
     floor_stamp : float, optional
         Stamp of the placement with the board flat on the floor, printed side up.
     world_from_floor_board : ndarray, optional
-        Where that board lies in the world (4x4); default :data:`FLOOR_BOARD_IN_WORLD`
-        (origin at its first inner corner, x along its rows, z up).
+        Where that board lies in the world (4x4); :data:`FLOOR_BOARD_IN_WORLD` by default.
     reference_world_from_camera : ndarray, optional
-        The reference sensor's world pose, used when the floor board was not seen (for
-        example from its floor plane, with x and y chosen).
+        The reference sensor's world pose, used when the floor board was not seen.
     tolerance_s : float
         Largest spread of stamps of one placement's views, seconds.
     min_shared_views : int
         Fewest placements two sensors must share to link them.
     huber_px : float
-        Residual beyond which the loss grows linearly, pixels: about three times the
-        corner noise of a good detector (0.1-0.2 px).
+        Residual beyond which the loss grows linearly, pixels (a good detector's corner
+        noise is 0.1-0.2 px).
     reject_px : float
-        Views whose RMS error exceeds both this and four times the median view's are
-        rejected, then corners whose error exceeds both half this and four times the
-        median corner's, and the problem solved again.
+        Views whose RMS error exceeds this and four times the median view's are rejected,
+        then corners beyond half this and four times the median corner's; solved again.
     max_evaluations : int
         Cap on residual evaluations per solve.
     refine_intrinsics : bool
@@ -196,6 +194,9 @@ def calibrate_extrinsics(
         under a weak prior, on the corners as seen (:func:`_as_seen`).
     lens : {"radial", "full"}
         The lens terms solved: ``k1, k2`` or OpenCV's five (:mod:`.bundle`'s ``LENS_MODELS``).
+    refine_level : float, optional
+        Chance of refining a sensor's right intrinsics: a refinement is kept only where
+        the views show them wrong (:mod:`.evidence`); ``None``: always kept.
 
     Returns
     -------
@@ -212,13 +213,27 @@ def calibrate_extrinsics(
     check_observations(observations, intrinsics, len(object_points))
     ref = _reference(reference, sensor_ids)
     settings = _Settings(tolerance_s, min_shared_views, huber_px, reject_px, max_evaluations,
-                         refine_intrinsics, lens)  # fmt: skip
+                         refine_intrinsics, lens, refine_level)  # fmt: skip
     fit = _fit(list(observations), intrinsics, object_points, ref, settings)
     floor_pose = FLOOR_BOARD_IN_WORLD if world_from_floor_board is None else world_from_floor_board
     world_from_ref, frame = _world_from_ref(
         fit, floor_stamp, tolerance_s, floor_pose, reference_world_from_camera
     )
     return _calibration(fit, sensor_ids, ref, world_from_ref, frame)
+
+
+def _weigh(fit: _Fit, sensor_ids: Sequence[str], settings: _Settings) -> _Fit:
+    """The fit, each sensor's refined intrinsics kept only where its views show them wrong.
+
+    See :func:`~openptrack_py.calibration.evidence.weigh_intrinsics`.
+    """
+    if not settings.refine_intrinsics or settings.refine_level is None:
+        return fit
+    problem, x, weighed = weigh_intrinsics(
+        fit.problem, fit.x, settings.huber_px, settings.max_evaluations, settings.refine_level
+    )
+    evidence = dict(zip(sensor_ids, weighed, strict=True))
+    return replace(fit, problem=problem, x=x, evidence=evidence)
 
 
 def _as_seen(
@@ -250,7 +265,11 @@ def _reference(reference: str | None, sensor_ids: Sequence[str]) -> str:
 
 
 def _calibration(
-    fit: _Fit, sensor_ids: Sequence[str], reference: str, world_from_ref: np.ndarray, frame: str
+    fit: _Fit,
+    sensor_ids: Sequence[str],
+    reference: str,
+    world_from_ref: np.ndarray,
+    frame: str,
 ) -> ExtrinsicCalibration:
     """The refined poses in the world frame, with the report."""
     cams, boards = fit.problem.unpack(fit.x)
@@ -302,6 +321,7 @@ def _report(fit: _Fit, sensor_ids: Sequence[str], reference: str, frame: str) ->
             if problem.refine_intrinsics
             else {}
         ),
+        intrinsics_evidence=dict(fit.evidence),
         distortion_px=(
             dict(zip(sensor_ids, problem.distortion_px(fit.x).tolist(), strict=True))
             if problem.refine_intrinsics
@@ -324,6 +344,7 @@ class _Settings:
     max_evaluations: int
     refine_intrinsics: bool = False
     lens: str = "radial"
+    refine_level: float | None = REFINE_LEVEL
     max_rounds: int = 25
 
     def __post_init__(self) -> None:
@@ -348,6 +369,7 @@ class _Fit:
     rejected_views: tuple[tuple[str, float], ...]
     rounds: int
     total_iterations: int
+    evidence: dict[str, IntrinsicsEvidence] = field(default_factory=dict)
 
 
 def _fit(
@@ -398,10 +420,11 @@ def _fit(
         cam_from_ref = dict(zip(sensor_ids, problem.unpack(x)[0], strict=True))
         k_start = problem.intrinsics(x) if settings.refine_intrinsics else None
         _check_left(observations, sensor_ids, settings.reject_px)
-    return _Fit(
+    fit = _Fit(
         problem, x, observations, placements, iterations, cost0, cost, tuple(rejected),
         rounds, total,
     )  # fmt: skip
+    return _weigh(fit, sensor_ids, settings)
 
 
 def _problem(

@@ -118,9 +118,13 @@ def _intrinsics_arguments(board: argparse.ArgumentParser) -> None:
     )
     own.add_argument(
         "--refine-intrinsics",
-        action="store_true",
+        nargs="?",
+        choices=("tested", "always"),
+        const="tested",
         help="solve every sensor's focal lengths, centre and lens distortion with the "
-        "poses (for units whose intrinsics differ from their type's; written to the file)",
+        "poses (for units whose intrinsics differ from their type's or from what they "
+        "report; written to the file). tested (default): a sensor's refinement is kept "
+        "only where its views show its given intrinsics wrong; always: kept for all",
     )
     board.add_argument(
         "--lens",
@@ -254,7 +258,7 @@ def _checkerboard_sim(network: NetworkConfig, args: argparse.Namespace) -> Any:
     room = scenario_from_network(network, calibrated=False).room
     sizes = {s.id: (SENSOR_TYPES[s.type].width, SENSOR_TYPES[s.type].height) for s in sensors}
     progress = _TerminalProgress(CalibrationProgress(sizes))
-    from openptrack_py.cli.calibrate_board import board_from_arg
+    from openptrack_py.cli.calibrate_board import board_from_arg, refine_options
 
     return simulate_checkerboard_calibration(
         sensors,
@@ -263,8 +267,7 @@ def _checkerboard_sim(network: NetworkConfig, args: argparse.Namespace) -> Any:
         placements=args.placements,
         seed=args.seed,
         estimate_intrinsics=args.intrinsics,
-        refine_intrinsics=args.refine_intrinsics,
-        lens=args.lens,
+        **refine_options(args),
         progress=progress,
     )
 

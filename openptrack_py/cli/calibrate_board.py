@@ -36,6 +36,18 @@ def board_from_arg(text: str) -> Any:
     return Checkerboard.parse(text)
 
 
+def refine_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The solve's intrinsics options from ``--refine-intrinsics`` and ``--lens``."""
+    from openptrack_py.calibration.evidence import REFINE_LEVEL
+
+    refine = getattr(args, "refine_intrinsics", None)
+    return {
+        "refine_intrinsics": bool(refine),
+        "lens": getattr(args, "lens", "radial"),
+        "refine_level": None if refine == "always" else REFINE_LEVEL,
+    }
+
+
 def record_sim(network: Any, args: argparse.Namespace) -> list[Path]:
     """Write the network's simulated session as one recording per sensor."""
     from openptrack_py.eval.board_stream import sim_board_session
@@ -194,8 +206,7 @@ def solve(network: Any, args: argparse.Namespace, board: Any, collector: Any) ->
         reference=network.sensors[0].id,
         floor_stamp=floor_stamp,
         reference_world_from_camera=reference_pose,
-        refine_intrinsics=getattr(args, "refine_intrinsics", False),
-        lens=getattr(args, "lens", "radial"),
+        **refine_options(args),
     )
 
 

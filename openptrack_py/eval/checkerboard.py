@@ -36,6 +36,7 @@ from openptrack_py.calibration.checkerboard import (
     board_pose,
     detect_board,
 )
+from openptrack_py.calibration.evidence import REFINE_LEVEL
 from openptrack_py.calibration.extrinsics import ExtrinsicCalibration, calibrate_extrinsics
 from openptrack_py.calibration.intrinsics import calibrate_intrinsics
 from openptrack_py.calibration.observations import BoardObservation
@@ -468,6 +469,7 @@ def solve_board_session(
     estimate_intrinsics: bool = False,
     refine_intrinsics: bool = False,
     lens: str = "radial",
+    refine_level: float | None = REFINE_LEVEL,
 ) -> SimCalibration:
     """Solve a rendered session's poses and compare them with the true ones.
 
@@ -489,6 +491,7 @@ def solve_board_session(
         min_shared_views=min_shared_views,
         refine_intrinsics=refine_intrinsics,
         lens=lens,
+        refine_level=refine_level,
     )
     truth = {s.id: world_from_optical(s.pose) for s in sensors}
     errors = {s.id: pose_error(calibration.world_from_optical[s.id], truth[s.id]) for s in sensors}
@@ -508,6 +511,7 @@ def simulate_checkerboard_calibration(
     estimate_intrinsics: bool = False,
     refine_intrinsics: bool = False,
     lens: str = "radial",
+    refine_level: float | None = REFINE_LEVEL,
     progress: CalibrationProgress | None = None,
 ) -> SimCalibration:
     """Run the whole checkerboard calibration on simulated sensors.
@@ -536,6 +540,9 @@ def simulate_checkerboard_calibration(
         type's nominal one (:func:`~openptrack_py.calibration.extrinsics.calibrate_extrinsics`).
     lens : {"radial", "full"}
         The lens terms ``refine_intrinsics`` solves.
+    refine_level : float, optional
+        A sensor's refinement is kept only where its views show its given intrinsics
+        wrong, at this chance of refining right ones; ``None``: always.
     progress : CalibrationProgress, optional
         Updated after every placement, as a live capture loop would.
 
@@ -556,5 +563,5 @@ def simulate_checkerboard_calibration(
     return solve_board_session(
         sensors, session, observations, board=board, reference=reference,
         min_shared_views=min_shared_views, estimate_intrinsics=estimate_intrinsics,
-        refine_intrinsics=refine_intrinsics, lens=lens,
+        refine_intrinsics=refine_intrinsics, lens=lens, refine_level=refine_level,
     )  # fmt: skip

@@ -654,7 +654,9 @@ def test_a_thin_session_says_its_refined_focal_lengths_are_poorly_determined() -
     obs = synthetic_views(sensors, boards_among(sensors, 12, seed=7), noise_px=0.15, seed=8)
     args = (obs, dict.fromkeys(sensors, Intrinsics.for_sensor("kinect2")))
     where = {"reference": "c1", "reference_world_from_camera": sensors["c1"]}
-    thin = calibrate_extrinsics(*args, SIM_BOARD.object_points(), **where, refine_intrinsics=True)
+    thin = calibrate_extrinsics(
+        *args, SIM_BOARD.object_points(), **where, refine_intrinsics=True, refine_level=None
+    )
     worst = max(
         pose_error(thin.world_from_optical[s], t).translation_cm for s, t in sensors.items()
     )
@@ -663,6 +665,56 @@ def test_a_thin_session_says_its_refined_focal_lengths_are_poorly_determined() -
     assert any(w.startswith("c0: focal length poorly determined") for w in warnings), warnings
     plain = calibrate_extrinsics(*args, SIM_BOARD.object_points(), **where)
     assert plain.intrinsics_warnings() == []
+    # refined only where the views show the given intrinsics wrong: here they do not
+    tested = calibrate_extrinsics(
+        *args, SIM_BOARD.object_points(), **where, refine_intrinsics=True
+    )
+    assert sorted(tested.report.intrinsics_kept) == ["c0", "c1", "c2"]
+    for sid, truth in sensors.items():
+        assert pose_error(tested.world_from_optical[sid], truth).translation_cm < 1.0, sid
+        assert tested.intrinsics[sid] == Intrinsics.for_sensor("kinect2"), sid
+    assert all(w.startswith(f"{s}: intrinsics kept as given") for s, w in
+               zip(("c0", "c1", "c2"), tested.intrinsics_warnings(), strict=True))  # fmt: skip
+
+
+def test_refined_intrinsics_are_kept_only_where_the_views_show_the_given_ones_wrong() -> None:
+    """Four units given their type's nominal pinhole: two are exactly that, two have
+    their own focal lengths (2-3 % off), centres and lenses. The likelihood-ratio test
+    keeps the given intrinsics of the first two (the rise of the corners' squared error
+    without their refinement is what noise gives) and refines the other two (a rise of
+    hundreds of noise variances); every sensor is then within 1.5 cm and 0.15 degrees,
+    and the two right units are placed better than when every unit is refined."""
+    nominal = Intrinsics.for_sensor("kinect2")
+    sensors = ring(4)
+    plain = np.zeros(5)
+    own = [
+        Intrinsics(512, 424, nominal.fx * (1 + d), nominal.fy * (1 + 0.9 * d),
+                   nominal.cx + dc, nominal.cy - dc)
+        for d, dc in ((0.03, 6), (-0.02, -4))
+    ]  # fmt: skip
+    units = {"c0": (nominal, plain), "c1": (own[0], np.array([0.08, -0.08, 0, 0, 0])),
+             "c2": (nominal, plain), "c3": (own[1], np.array([-0.05, 0.05, 0, 0, 0]))}  # fmt: skip
+    boards = [*boards_among(sensors, 40, seed=1), floor_board((3.0, 2.5))]
+    obs = distorted_views(sensors, boards, units, noise_px=0.15, seed=5)
+    args = (obs, dict.fromkeys(sensors, nominal), SIM_BOARD.object_points())
+    where = {"floor_stamp": 10.0 * (len(boards) - 1), "world_from_floor_board": boards[-1]}
+    tested = calibrate_extrinsics(*args, **where, refine_intrinsics=True)
+    evidence = tested.report.intrinsics_evidence
+    assert tested.report.intrinsics_kept == ["c0", "c2"], evidence
+    assert evidence["c1"].statistic > 100 and evidence["c3"].statistic > 100, evidence
+    assert evidence["c0"].threshold == pytest.approx(22.46, abs=0.01)  # chi2(6) at 0.999
+    assert tested.intrinsics["c0"] == nominal and tested.intrinsics["c2"] == nominal
+    assert tested.intrinsics["c1"].fx == pytest.approx(own[0].fx, rel=0.005)
+    report = tested.report.to_dict()["intrinsics_evidence"]
+    assert report["c1"]["refined"] and not report["c0"]["refined"]
+    always = calibrate_extrinsics(*args, **where, refine_intrinsics=True, refine_level=None)
+    assert always.report.intrinsics_evidence == {} and not always.report.intrinsics_kept
+    for sid, truth in sensors.items():
+        error = pose_error(tested.world_from_optical[sid], truth)
+        assert error.translation_cm < 1.5 and error.rotation_deg < 0.15, (sid, error)
+        if sid in ("c0", "c2"):  # refining what is right only fits noise: 0.4-0.6 cm off
+            before = pose_error(always.world_from_optical[sid], truth).translation_cm
+            assert error.translation_cm < before - 0.2, (sid, error, before)
 
 
 def test_progress_counts_pairs_and_image_coverage() -> None:

@@ -288,7 +288,8 @@ def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
     board_session: Path, tmp_path: Path
 ) -> None:
     """``--refine-intrinsics`` solves each camera's lens with the poses and writes it to
-    the calibration file (these simulated units have their type's nominal lens)."""
+    the calibration file. These simulated units have their type's nominal pinhole and
+    no lens, and their views do not show it wrong: each keeps it, and says so."""
     out = tmp_path / "calibration.yaml"
     done = _cli("checkerboard", "demo", "--recordings", str(board_session), "--output", str(out),
                 "--format", "json", "--refine-intrinsics")  # fmt: skip
@@ -296,6 +297,8 @@ def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
     nominal = Intrinsics.for_sensor("kinect2")
     rows = {r["sensor"]: r for r in json.loads(done.stdout)}
     assert all(abs(r["fx"] / nominal.fx - 1) < 0.01 for r in rows.values()), rows
+    for sensor_id in rows:
+        assert f"{sensor_id}: intrinsics kept as given" in done.stderr, done.stderr[-2000:]
     entries = load_calibration(out).sensors
     for sensor_id, entry in entries.items():
         k = entry.intrinsics
@@ -329,6 +332,7 @@ def test_checkerboard_recordings_of_cameras_reporting_a_lens_refine_their_whole_
     done = _cli("checkerboard", "demo", "--recordings", str(session), "--output", str(out),
                 "--format", "json", "--refine-intrinsics")  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
+    assert "intrinsics kept as given" not in done.stderr  # the claimed lens is wrong
     entries = load_calibration(out).sensors
     for sensor_id, entry in entries.items():
         k = entry.intrinsics
