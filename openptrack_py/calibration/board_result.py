@@ -193,7 +193,7 @@ class ExtrinsicCalibration:
         out = [
             f"{sid}: intrinsics kept as given: refining them lowered the corners' squared "
             f"error by {e.statistic:.1f} noise variances, {e.threshold:.1f} would show them "
-            "wrong (--refine-intrinsics always refines anyway)"
+            "wrong (--always-refine refines them anyway)"
             for sid, e in self.report.intrinsics_evidence.items()
             if not e.refined
         ]

@@ -229,11 +229,18 @@ def _weigh(fit: _Fit, sensor_ids: Sequence[str], settings: _Settings) -> _Fit:
     """
     if not settings.refine_intrinsics or settings.refine_level is None:
         return fit
-    problem, x, weighed = weigh_intrinsics(
+    weighed = weigh_intrinsics(
         fit.problem, fit.x, settings.huber_px, settings.max_evaluations, settings.refine_level
     )
-    evidence = dict(zip(sensor_ids, weighed, strict=True))
-    return replace(fit, problem=problem, x=x, evidence=evidence)
+    return replace(
+        fit,
+        problem=weighed.problem,
+        x=weighed.x,
+        evidence=dict(zip(sensor_ids, weighed.evidence, strict=True)),
+        iterations=weighed.iterations or fit.iterations,
+        total_iterations=fit.total_iterations + weighed.total_iterations,
+        final_cost=weighed.final_cost,
+    )
 
 
 def _as_seen(
@@ -275,11 +282,10 @@ def _calibration(
     cams, boards = fit.problem.unpack(fit.x)
     refined: dict[str, Intrinsics] = {}
     if fit.problem.refine_intrinsics:
-        solved = zip(
-            sensor_ids, fit.problem.image_sizes, fit.problem.intrinsics(fit.x), strict=True
-        )
-        for s, (width, height), k in solved:
-            refined[s] = Intrinsics(width, height, *(float(v) for v in k))
+        solved = (sensor_ids, fit.problem.image_sizes, fit.problem.intrinsics(fit.x))
+        for s, (width, height), k, kept in zip(*solved, fit.problem.fixed, strict=True):
+            if not kept:  # a sensor that kept its given intrinsics has none to write
+                refined[s] = Intrinsics(width, height, *(float(v) for v in k))
     return ExtrinsicCalibration(
         world_from_optical={s: world_from_ref @ invert(cams[i]) for i, s in enumerate(sensor_ids)},
         world_from_board={
@@ -316,14 +322,23 @@ def _report(fit: _Fit, sensor_ids: Sequence[str], reference: str, frame: str) ->
         intrinsics_sd=(
             {
                 s: tuple(float(v) for v in sd)
-                for s, sd in zip(sensor_ids, problem.intrinsics_sd(fit.x), strict=True)
+                for s, sd, kept in zip(
+                    sensor_ids, problem.intrinsics_sd(fit.x), problem.fixed, strict=True
+                )
+                if not kept
             }
             if problem.refine_intrinsics
             else {}
         ),
         intrinsics_evidence=dict(fit.evidence),
         distortion_px=(
-            dict(zip(sensor_ids, problem.distortion_px(fit.x).tolist(), strict=True))
+            {
+                s: px
+                for s, px, kept in zip(
+                    sensor_ids, problem.distortion_px(fit.x).tolist(), problem.fixed, strict=True
+                )
+                if not kept
+            }
             if problem.refine_intrinsics
             else {}
         ),

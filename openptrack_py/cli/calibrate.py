@@ -118,13 +118,17 @@ def _intrinsics_arguments(board: argparse.ArgumentParser) -> None:
     )
     own.add_argument(
         "--refine-intrinsics",
-        nargs="?",
-        choices=("tested", "always"),
-        const="tested",
+        action="store_true",
         help="solve every sensor's focal lengths, centre and lens distortion with the "
         "poses (for units whose intrinsics differ from their type's or from what they "
-        "report; written to the file). tested (default): a sensor's refinement is kept "
-        "only where its views show its given intrinsics wrong; always: kept for all",
+        "report; written to the file); a sensor keeps its given intrinsics where its "
+        "views do not show them wrong",
+    )
+    board.add_argument(
+        "--always-refine",
+        action="store_true",
+        help="with --refine-intrinsics: keep every sensor's refinement, even where its "
+        "views do not show its given intrinsics wrong",
     )
     board.add_argument(
         "--lens",
@@ -196,6 +200,8 @@ def run_checkerboard(args: argparse.Namespace) -> int:
         return _fail("checkerboard: --record writes a simulated session: it needs --sim")
     if args.lens != "radial" and not args.refine_intrinsics:
         return _fail(f"checkerboard: --lens {args.lens} is solved by --refine-intrinsics: add it")
+    if args.always_refine and not args.refine_intrinsics:
+        return _fail("checkerboard: --always-refine keeps what --refine-intrinsics solves: add it")
     if sum([bool(args.sim), args.recordings is not None, args.live is not None]) != 1:
         return _fail("checkerboard: give one of --sim, --recordings DIR or --live SECONDS")
     try:

@@ -40,11 +40,10 @@ def refine_options(args: argparse.Namespace) -> dict[str, Any]:
     """The solve's intrinsics options from ``--refine-intrinsics`` and ``--lens``."""
     from openptrack_py.calibration.evidence import REFINE_LEVEL
 
-    refine = getattr(args, "refine_intrinsics", None)
     return {
-        "refine_intrinsics": bool(refine),
+        "refine_intrinsics": getattr(args, "refine_intrinsics", False),
         "lens": getattr(args, "lens", "radial"),
-        "refine_level": None if refine == "always" else REFINE_LEVEL,
+        "refine_level": None if getattr(args, "always_refine", False) else REFINE_LEVEL,
     }
 
 

@@ -287,18 +287,28 @@ def _offset_from_k2_a_m(entries: dict, sensor_id: str) -> float:
 def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
     board_session: Path, tmp_path: Path
 ) -> None:
-    """``--refine-intrinsics`` solves each camera's lens with the poses and writes it to
-    the calibration file. These simulated units have their type's nominal pinhole and
-    no lens, and their views do not show it wrong: each keeps it, and says so."""
+    """``--refine-intrinsics`` solves each camera's lens with the poses; a sensor whose
+    views do not show its given intrinsics wrong keeps them and says so. These simulated
+    units have their type's nominal pinhole and no lens: each keeps it, and the file
+    gets no intrinsics (their frames' stand). With ``--always-refine`` each one's
+    refined pinhole and lens are written, near the nominal ones."""
     out = tmp_path / "calibration.yaml"
     done = _cli("checkerboard", "demo", "--recordings", str(board_session), "--output", str(out),
                 "--format", "json", "--refine-intrinsics")  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
+    rows = {r["sensor"]: r for r in json.loads(done.stdout)}
+    assert sorted(rows) == ["k2_a", "k2_b", "k2_c"] and all("fx" not in r for r in rows.values())
+    entries = load_calibration(out).sensors
+    for sensor_id, entry in entries.items():
+        assert f"{sensor_id}: intrinsics kept as given" in done.stderr, done.stderr[-2000:]
+        assert entry.intrinsics is None, sensor_id
+        assert _offset_from_k2_a_m(entries, sensor_id) < 0.02, sensor_id
+    done = _cli("checkerboard", "demo", "--recordings", str(board_session), "--output", str(out),
+                "--format", "json", "--refine-intrinsics", "--always-refine")  # fmt: skip
+    assert done.returncode == 0 and "kept as given" not in done.stderr, done.stderr[-2000:]
     nominal = Intrinsics.for_sensor("kinect2")
     rows = {r["sensor"]: r for r in json.loads(done.stdout)}
     assert all(abs(r["fx"] / nominal.fx - 1) < 0.01 for r in rows.values()), rows
-    for sensor_id in rows:
-        assert f"{sensor_id}: intrinsics kept as given" in done.stderr, done.stderr[-2000:]
     entries = load_calibration(out).sensors
     for sensor_id, entry in entries.items():
         k = entry.intrinsics
@@ -310,6 +320,9 @@ def test_checkerboard_from_recordings_can_refine_each_sensors_intrinsics(
     lens_alone = _cli("checkerboard", "demo", "--sim", "--lens", "full")
     assert lens_alone.returncode != 0
     assert "--lens full is solved by --refine-intrinsics: add it" in lens_alone.stderr
+    always_alone = _cli("checkerboard", "demo", "--sim", "--always-refine")
+    assert always_alone.returncode != 0
+    assert "--always-refine keeps what --refine-intrinsics solves: add it" in always_alone.stderr
 
 
 @pytest.mark.slow
