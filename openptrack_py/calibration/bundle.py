@@ -34,6 +34,7 @@ __all__ = [
     "BundleProblem",
     "corner_outliers",
     "huber_cost",
+    "huber_rho",
     "solve",
     "view_outliers",
 ]
@@ -439,11 +440,15 @@ def solve(
     return x, iterations, initial, float(result.cost)
 
 
+def huber_rho(residuals: np.ndarray, scale: float) -> np.ndarray:
+    """Each residual's Huber loss in pixels^2: its square within ``scale``, linear beyond."""
+    z = (np.asarray(residuals, dtype=float) / scale) ** 2
+    return scale**2 * np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0)
+
+
 def huber_cost(residuals: np.ndarray, scale: float) -> float:
     """``least_squares``' cost of residuals under its ``huber`` loss with ``f_scale=scale``."""
-    z = (np.asarray(residuals, dtype=float) / scale) ** 2
-    rho = np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0)
-    return float(0.5 * scale**2 * rho.sum())
+    return float(0.5 * huber_rho(residuals, scale).sum())
 
 
 def view_outliers(problem: BundleProblem, x: np.ndarray, reject_px: float) -> list[int]:

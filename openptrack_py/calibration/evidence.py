@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from openptrack_py.calibration.bundle import BundleProblem, huber_cost, solve
+from openptrack_py.calibration.bundle import BundleProblem, huber_cost, huber_rho, solve
 
 __all__ = ["REFINE_LEVEL", "IntrinsicsEvidence", "WeighedFit", "weigh_intrinsics"]
 
@@ -72,9 +72,8 @@ def _per_sensor(problem: BundleProblem, x: np.ndarray, huber_px: float) -> np.nd
     err = ((problem.project(x) - problem.observed) * problem.mask[..., None]).reshape(
         len(problem.observed), -1
     )
-    z = (err / huber_px) ** 2
-    rho = huber_px**2 * np.where(z <= 1.0, z, 2.0 * np.sqrt(z) - 1.0)
-    return np.bincount(problem.view_sensor, rho.sum(axis=1), minlength=problem.sensors)
+    per_view = huber_rho(err, huber_px).sum(axis=1)
+    return np.bincount(problem.view_sensor, per_view, minlength=problem.sensors)
 
 
 def _held(problem: BundleProblem, x: np.ndarray, fixed: np.ndarray) -> np.ndarray:

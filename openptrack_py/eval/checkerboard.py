@@ -105,12 +105,11 @@ class SimSensor:
         """
         if cfg.pose is None:
             raise ConfigError(f"sensors.{cfg.id}.pose: a simulated sensor needs a pose")
-        lens = cfg.sim_lens
-        if lens is None:
+        if cfg.sim_lens is None:
             return cls(cfg.id, cfg.type, cfg.pose)
-        nominal = Intrinsics.for_sensor(cfg.type)
-        reported = None if lens.reported is None else nominal.with_distortion(lens.reported)
-        return cls(cfg.id, cfg.type, cfg.pose, nominal.with_distortion(lens.distortion), reported)
+        spec = SensorSpec.from_config(cfg)  # the unit's lens and what it reports
+        reported = None if cfg.sim_lens.reported is None else spec.reported_intrinsics
+        return cls(cfg.id, cfg.type, cfg.pose, spec.intrinsics, reported)
 
     def with_own_pinhole(self, focal: float, focal_y: float, du: float, dv: float) -> SimSensor:
         """The sensor as a unit with its own pinhole, off its type's nominal one.
