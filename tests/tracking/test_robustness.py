@@ -190,3 +190,55 @@ def test_published_confidence_reflects_the_evidence() -> None:
                 confidence[1 if tr.y < 2.5 else 2].append(tr.confidence)
     assert np.mean(confidence[1]) > 0.8
     assert np.mean(confidence[2]) < 0.6 * np.mean(confidence[1])
+
+
+MISALIGNED = {  # sensor: (position, where its calibration puts its detections)
+    "a": (np.array([0.0, 0.0]), np.array([0.21, 0.21])),
+    "b": (np.array([6.0, 0.0]), np.array([-0.30, 0.05])),
+    "c": (np.array([3.0, 6.0]), np.array([0.10, -0.28])),
+}
+"""Three corner sensors, each placed 0.3 m off by its calibration (and turned 3 degrees
+about itself): the far end of the OpenPTrack paper's errors before refinement."""
+
+
+def _seen_misaligned(sensor: str, xy: np.ndarray) -> np.ndarray:
+    where, offset = MISALIGNED[sensor]
+    c, s = math.cos(math.radians(3.0)), math.sin(math.radians(3.0))
+    rel = xy - where
+    return where + np.array([c * rel[0] - s * rel[1], s * rel[0] + c * rel[1]]) + offset
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known limitation: sensors that disagree by more than a gate from the first "
+    "frame each start their own track of every person; no track is fed by two sensors, so "
+    "no misalignment is learned (docs/evaluation.md, per-sensor tracks)",
+)
+def test_three_sensors_30_cm_off_give_each_person_one_track() -> None:
+    """Three people walk a circle, seen by three quiet sensors 0.3 m and 3 degrees off."""
+    rng = np.random.default_rng(0)
+    tracker = build_tracker(TrackerConfig())
+    one_each, steps = 0, 0
+    for k in range(int(20.0 / FRAME)):
+        for i, sensor in enumerate(MISALIGNED):
+            t = k * FRAME + 0.011 * i
+            people = [
+                np.array(
+                    [3 + 1.5 * math.cos(0.4 * t + 2.1 * p), 3 + 1.5 * math.sin(0.4 * t + 2.1 * p)]
+                )
+                for p in range(3)
+            ]
+            dets = tuple(
+                _detection(_seen_misaligned(sensor, xy) + rng.normal(0, 0.02, 2), 0.9)
+                for xy in people
+                if rng.random() > 0.1
+            )
+            out = tracker.step(DetectionBatch(sensor, k, T0 + t, "world", dets))
+            if t > 10.0:
+                confirmed = [(tr.x, tr.y) for tr in out.tracks if tr.confirmed]
+                steps += 1
+                one_each += len(confirmed) == 3 and all(
+                    sum(math.hypot(x - p[0], y - p[1]) < 0.6 for x, y in confirmed) == 1
+                    for p in people
+                )
+    assert one_each / steps > 0.95, one_each / steps
