@@ -143,6 +143,15 @@ class TrackerConfig(StrictModel):
         more sensors see a person) and remove it from its detections.
     max_bias_m : float
         Largest offset estimated.
+    calibration_sigma_m, calibration_sigma_deg : float
+        How far off each sensor's calibration may be before its misalignment is learned
+        (standard deviations: metres per axis, degrees of yaw). Until then a detection
+        compared with a track another sensor fed has both sensors' unlearned
+        misalignment added to its noise, so sensors that disagree by more than a gate
+        still feed one track per person and their misalignment can be learned; 0 trusts
+        the calibration. The OpenPTrack paper reports 5-20 cm and 1-3 degrees before
+        refinement (0.12 and 2 are its middle); a calibration refined from a walk or a
+        checkerboard needs none.
     merge_distance_m : float
         Two confirmed tracks closer than this, moving alike, both being detected and
         never detected in one sensor frame together, follow one person.
@@ -285,6 +294,8 @@ class TrackerConfig(StrictModel):
     noise_scale_max: float = Field(25.0, ge=1.0, le=400.0)
     estimate_bias: bool = True
     max_bias_m: float = Field(0.5, ge=0.0, le=5.0)
+    calibration_sigma_m: float = Field(0.0, ge=0.0, le=2.0)
+    calibration_sigma_deg: float = Field(0.0, ge=0.0, le=20.0)
     merge_distance_m: float = Field(0.45, ge=0.0, le=2.0)
     merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)

@@ -36,6 +36,8 @@ class RigidAlignment:
     min_spread_m2 : float
         Least variance (sum over both axes) of the matched raw positions before the
         rotation is estimated.
+    fitted_weight : float
+        The remembered weight when the map was last fitted: how many pairs it rests on.
     """
 
     memory: float = 2000.0
@@ -46,6 +48,7 @@ class RigidAlignment:
     sum_zz: np.ndarray = field(default_factory=lambda: np.zeros(2))
     sum_zx: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
     theta: float = 0.0
+    fitted_weight: float = 0.0
     shift: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     def copy(self) -> RigidAlignment:
@@ -82,6 +85,7 @@ class RigidAlignment:
         """Update the rotation and translation from the remembered pairs."""
         if self.weight <= 0:
             return
+        self.fitted_weight = self.weight
         zbar, xbar = self.sum_z / self.weight, self.sum_x / self.weight
         spread = float(self.sum_zz.sum() / self.weight - zbar @ zbar)
         if spread >= self.min_spread_m2:

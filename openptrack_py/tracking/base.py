@@ -128,6 +128,14 @@ class SensorModel(Protocol):
     def noise_scale(self, sensor_id: str, distance: np.ndarray) -> np.ndarray:
         """Factor on the configured covariance of a sensor's detections at ``distance``."""
 
+    def cross_sensor_var(
+        self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
+    ) -> np.ndarray:
+        """Variance added against tracks another sensor fed, ``(n, m)``.
+
+        ``last_sensor`` indexes ``names``: the two calibrations' unlearned disagreement.
+        """
+
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` the sensor is known to see."""
 

@@ -59,6 +59,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             estimate_bias=cfg.estimate_bias,
             scale_bounds=(cfg.noise_scale_min, cfg.noise_scale_max),
             max_bias_m=cfg.max_bias_m,
+            calibration_sigma=(cfg.calibration_sigma_m, cfg.calibration_sigma_deg),
         ),
         merger=TrackMerger(
             cfg.merge_distance_m,

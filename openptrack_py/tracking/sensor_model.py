@@ -26,7 +26,17 @@ the innovations of the confirmed tracks it updates:
   learned only where at least two sensors see the track (one sensor alone defines its
   track), bounded, and applied to its detections before association. A rotation or
   shift of every sensor at once is invisible; it is fixed by keeping the sensors' mean
-  map the identity. This is the quantity calibration refinement needs.
+  map the identity. This is the quantity calibration refinement needs. Until it is
+  learned, a calibration may be off by more than a gate (the OpenPTrack paper reports
+  5-20 cm and 1-3 degrees before refinement): each sensor would then start its own
+  track of every person, no track would be fed by two sensors, and nothing would be
+  learned. So, given the calibration's own uncertainty (``calibration_sigma``), a
+  detection compared with a track another sensor fed last has both sensors' unlearned
+  misalignment added to its noise, ``sigma_m^2 + (sigma_yaw d)^2`` per axis and sensor
+  at the detection's distance ``d``, shrinking as ``n0 / (n0 + n)`` with the ``n``
+  pairs the sensor's fitted alignment rests on (:data:`ALIGNMENT_SETTLE_PAIRS`). A
+  sensor's detections are never widened against its own tracks: its own error is
+  common to both.
 * a **clutter density**: how many of the sensor's detections no track takes, per
   frame and square metre of the floor it covers. A track may only take a detection
   that it explains better than clutter would (its likelihood above that density), so a
@@ -150,6 +160,14 @@ def gated_noise_scale(samples: np.ndarray, bounds: tuple[float, float]) -> float
     return float(min(max(math.exp(res.x), bounds[0]), bounds[1]))
 
 
+ALIGNMENT_SETTLE_PAIRS = 100.0
+"""Matched pairs after which a sensor's unlearned misalignment counts half.
+
+A sensor's pairs come at its frame rate with errors correlated over about a second (a
+detector's centroid sits consistently off on one body), so a hundred pairs are a few
+seconds of a person seen by two sensors, not a hundred independent looks."""
+
+
 class OnlineSensorModel:
     """Per-sensor noise scale, bias and coverage, learned from the tracker's updates.
 
@@ -179,6 +197,9 @@ class OnlineSensorModel:
         changes over seconds, not frames.
     min_samples : int
         Samples needed before the first fit.
+    calibration_sigma : (float, float)
+        Standard deviation of a sensor's calibration error before its alignment is
+        learned: metres per axis, and degrees of yaw; ``(0, 0)`` trusts the calibration.
     """
 
     def __init__(
@@ -195,6 +216,7 @@ class OnlineSensorModel:
         refit_every: int = 30,
         refit_min_batches: int = 10,
         min_samples: int = 60,
+        calibration_sigma: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         if not 0 < scale_bounds[0] <= 1.0 <= scale_bounds[1]:
             raise ValueError(
@@ -212,6 +234,7 @@ class OnlineSensorModel:
         self.refit_every = refit_every
         self.refit_min_batches = refit_min_batches
         self.min_samples = min_samples
+        self.calibration_sigma = (calibration_sigma[0], math.radians(calibration_sigma[1]))
         self._sensors: dict[str, _SensorState] = {}
         self._coverage = Coverage()
 
@@ -239,6 +262,33 @@ class OnlineSensorModel:
         if st is None:
             return np.ones(len(distance))
         return st.scale_at(np.asarray(distance, dtype=float))
+
+    def cross_sensor_var(
+        self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
+    ) -> np.ndarray:
+        """Variance per axis added to this sensor's detections against other sensors' tracks.
+
+        ``(n, m)``: detections at ``distance`` against tracks whose last detection came
+        from another sensor (``last_sensor``, indices into ``names``) get both sensors'
+        misalignment not yet learned; 0 against this sensor's own.
+        """
+        out = np.zeros((len(last_sensor), len(distance)))
+        if not self.estimate_bias or not any(self.calibration_sigma):
+            return out
+        own = self._unlearned(sensor_id, distance)
+        for k in np.unique(last_sensor).tolist():
+            other = names[k] if 0 <= k < len(names) else None
+            if other != sensor_id:
+                theirs = self._unlearned(other, distance)
+                out[last_sensor == k] = own + theirs
+        return out
+
+    def _unlearned(self, sensor_id: str | None, distance: np.ndarray) -> np.ndarray:
+        shift, yaw = self.calibration_sigma
+        prior = shift**2 + (yaw * np.asarray(distance, dtype=float)) ** 2
+        st = self._sensors.get(sensor_id) if sensor_id is not None else None
+        pairs = 0.0 if st is None else st.align.fitted_weight
+        return prior * ALIGNMENT_SETTLE_PAIRS / (ALIGNMENT_SETTLE_PAIRS + pairs)
 
     def alignment(self, sensor_id: str) -> tuple[float, np.ndarray]:
         """A sensor's learned correction: rotation (radians) and translation (metres).
@@ -405,6 +455,12 @@ class StaticSensorModel:
     def correct(self, dets: DetectionArrays) -> DetectionArrays:
         """The detections unchanged."""
         return dets
+
+    def cross_sensor_var(
+        self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
+    ) -> np.ndarray:
+        """Calibrations are trusted: nothing added."""
+        return np.zeros((len(last_sensor), len(distance)))
 
     def clutter_density(self, sensor_id: str) -> float:
         """None known: never stops an association."""

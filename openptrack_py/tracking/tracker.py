@@ -170,17 +170,8 @@ class Tracker:
     @property
     def roles(self) -> tuple[object, ...]:
         """Every role, in constructor order."""
-        return (
-            self.motion,
-            self.measurement,
-            self.gater,
-            self.associator,
-            self.initiator,
-            self.deleter,
-            self.sensors,
-            self.merger,
-            self.identity,
-        )
+        return (self.motion, self.measurement, self.gater, self.associator, self.initiator,
+                self.deleter, self.sensors, self.merger, self.identity)  # fmt: skip
 
     def _stateful(self) -> list[tuple[object, bool]]:
         """Every role with whether it keeps state of its own (looked up once per role)."""
@@ -326,9 +317,12 @@ class Tracker:
         proj = self.ukf.project(tb.x, tb.cov, self.measurement.hx)
         z, r = self.measurement.pair_measurements(dets, tb, t)
         scale = self.sensors.noise_scale(dets.sensor_id, dets.distance)
-        if (scale != 1.0).any():
+        names = list(self._sensor_index)  # by index
+        extra = self.sensors.cross_sensor_var(dets.sensor_id, dets.distance, tb.last_sensor, names)
+        if (scale != 1.0).any() or extra.any():
             r = r.copy()
             r[..., 0:2, 0:2] *= scale[None, :, None, None]
+            r[..., 0:2, 0:2] += extra[..., None, None] * np.eye(2)
         resid = z - proj.z[:, None, :]
         d2, logdet = mahalanobis(resid, proj.pzz[:, None], r)
         return proj, z, r, d2, logdet

@@ -112,6 +112,34 @@ def test_bias_and_scale_are_bounded() -> None:
     assert model.noise_scale("s", np.array([3.0]))[0] <= 4.0
 
 
+def test_an_unlearned_calibration_widens_only_pairs_of_different_sensors() -> None:
+    """Against a track another sensor fed, a detection gets both sensors' calibration
+    uncertainty (shift and yaw at its distance); against its own sensor's, nothing; it
+    shrinks as the sensor's alignment rests on more pairs, and is 0 when calibrations
+    are trusted."""
+    from openptrack_py.tracking.sensor_model import ALIGNMENT_SETTLE_PAIRS, StaticSensorModel
+
+    model = OnlineSensorModel(calibration_sigma=(0.12, 2.0))
+    distance = np.array([1.0, 5.0])
+    last = np.array([0, 1, 1, -1])  # tracks last fed by "a", "b", "b", nobody known
+    var = model.cross_sensor_var("a", distance, last, ["a", "b"])
+    prior = 0.12**2 + (np.radians(2.0) * distance) ** 2
+    np.testing.assert_allclose(var[0], 0.0)  # its own track: its error is common
+    np.testing.assert_allclose(var[1], 2 * prior)
+    np.testing.assert_allclose(var[3], 2 * prior)
+    spread = np.column_stack([np.linspace(0, 4, 30), np.linspace(0, 4, 30)])
+    ones = np.ones(30)
+    for _ in range(int(ALIGNMENT_SETTLE_PAIRS / 30) + 1):
+        model.learn(SensorUpdates("b", spread, spread, 3 * ones, 0 * ones, 0.01 * ones, GATE,
+                                  ones > 0))  # fmt: skip
+    settled = model.cross_sensor_var("a", distance, last, ["a", "b"])
+    assert (settled[1] < 1.6 * prior).all() and (settled[1] > prior).all()
+    for trusted in (OnlineSensorModel(), OnlineSensorModel(calibration_sigma=(0.12, 2.0),
+                                                           estimate_bias=False),
+                    StaticSensorModel()):  # fmt: skip
+        assert not trusted.cross_sensor_var("a", distance, last, ["a", "b"]).any()
+
+
 def test_coverage_is_where_a_sensor_reported_something() -> None:
     model = OnlineSensorModel()
     tracker = build_tracker(TrackerConfig())
