@@ -116,6 +116,11 @@ class PerfectSensors:
     def noise_scale(self, sensor_id: str, distance: np.ndarray) -> np.ndarray:
         return np.ones(len(distance))
 
+    def cross_sensor_var(
+        self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
+    ) -> np.ndarray:
+        return np.zeros((len(last_sensor), len(distance)))
+
     def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
         return np.zeros(len(xy), dtype=bool)
 
