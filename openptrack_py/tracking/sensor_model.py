@@ -33,8 +33,8 @@ the innovations of the confirmed tracks it updates:
   learned. So, given the calibration's own uncertainty (``calibration_sigma``), a
   detection compared with a track another sensor fed last has both sensors' unlearned
   misalignment added to its noise, ``sigma_m^2 + (sigma_yaw d)^2`` per axis and sensor
-  at the detection's distance ``d``, shrinking as ``n0 / (n0 + n)`` with the ``n``
-  pairs the sensor's fitted alignment rests on (:data:`ALIGNMENT_SETTLE_PAIRS`). A
+  at the detection's distance ``d``: the prior, shrunk to its posterior by the ``n``
+  pairs the sensor's fitted alignment rests on (:data:`ALIGNMENT_PAIR_VAR_M2`). A
   sensor's detections are never widened against its own tracks: its own error is
   common to both.
 * a **clutter density**: how many of the sensor's detections no track takes, per
@@ -160,12 +160,13 @@ def gated_noise_scale(samples: np.ndarray, bounds: tuple[float, float]) -> float
     return float(min(max(math.exp(res.x), bounds[0]), bounds[1]))
 
 
-ALIGNMENT_SETTLE_PAIRS = 100.0
-"""Matched pairs after which a sensor's unlearned misalignment counts half.
+ALIGNMENT_PAIR_VAR_M2 = 0.3
+"""What one matched pair tells of a sensor's misalignment: variance per axis, m^2.
 
-A sensor's pairs come at its frame rate with errors correlated over about a second (a
-detector's centroid sits consistently off on one body), so a hundred pairs are a few
-seconds of a person seen by two sensors, not a hundred independent looks."""
+A detection's error is about 0.1 m per axis, and it persists for about a second (a
+detector's centroid sits consistently off on one body), so at 30 frames a second some
+30 pairs make one independent look: ``0.1^2 * 30``. After ``n`` pairs the misalignment
+is known to ``1 / (1 / prior + n / ALIGNMENT_PAIR_VAR_M2)``, the prior's posterior."""
 
 
 class OnlineSensorModel:
@@ -288,7 +289,7 @@ class OnlineSensorModel:
         prior = shift**2 + (yaw * np.asarray(distance, dtype=float)) ** 2
         st = self._sensors.get(sensor_id) if sensor_id is not None else None
         pairs = 0.0 if st is None else st.align.fitted_weight
-        return prior * ALIGNMENT_SETTLE_PAIRS / (ALIGNMENT_SETTLE_PAIRS + pairs)
+        return prior * ALIGNMENT_PAIR_VAR_M2 / (ALIGNMENT_PAIR_VAR_M2 + pairs * prior)
 
     def alignment(self, sensor_id: str) -> tuple[float, np.ndarray]:
         """A sensor's learned correction: rotation (radians) and translation (metres).

@@ -117,7 +117,7 @@ def test_an_unlearned_calibration_widens_only_pairs_of_different_sensors() -> No
     uncertainty (shift and yaw at its distance); against its own sensor's, nothing; it
     shrinks as the sensor's alignment rests on more pairs, and is 0 when calibrations
     are trusted."""
-    from openptrack_py.tracking.sensor_model import ALIGNMENT_SETTLE_PAIRS, StaticSensorModel
+    from openptrack_py.tracking.sensor_model import ALIGNMENT_PAIR_VAR_M2, StaticSensorModel
 
     model = OnlineSensorModel(calibration_sigma=(0.12, 2.0))
     distance = np.array([1.0, 5.0])
@@ -129,11 +129,15 @@ def test_an_unlearned_calibration_widens_only_pairs_of_different_sensors() -> No
     np.testing.assert_allclose(var[3], 2 * prior)
     spread = np.column_stack([np.linspace(0, 4, 30), np.linspace(0, 4, 30)])
     ones = np.ones(30)
-    for _ in range(int(ALIGNMENT_SETTLE_PAIRS / 30) + 1):
+    for _ in range(4):  # 120 pairs, fitted every 30
         model.learn(SensorUpdates("b", spread, spread, 3 * ones, 0 * ones, 0.01 * ones, GATE,
                                   ones > 0))  # fmt: skip
+    pairs = model._sensors["b"].align.fitted_weight
+    assert 100 < pairs <= 120
     settled = model.cross_sensor_var("a", distance, last, ["a", "b"])
-    assert (settled[1] < 1.6 * prior).all() and (settled[1] > prior).all()
+    posterior = 1 / (1 / prior + pairs / ALIGNMENT_PAIR_VAR_M2)  # b's; a learned nothing
+    np.testing.assert_allclose(settled[1], prior + posterior)
+    assert (posterior < 0.2 * prior).all()
     for trusted in (OnlineSensorModel(), OnlineSensorModel(calibration_sigma=(0.12, 2.0),
                                                            estimate_bias=False),
                     StaticSensorModel()):  # fmt: skip
