@@ -52,8 +52,9 @@ back where that lens imaged them, and the lens is refined from it).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -79,6 +80,8 @@ from openptrack_py.calibration.progress import CalibrationProgress
 from openptrack_py.detection.frame import Intrinsics
 from openptrack_py.errors import CalibrationError
 from openptrack_py.geometry import invert
+
+T = TypeVar("T")
 
 __all__ = [
     "FLOOR_BOARD_IN_WORLD",
@@ -279,13 +282,14 @@ def _calibration(
     frame: str,
 ) -> ExtrinsicCalibration:
     """The refined poses in the world frame, with the report."""
-    cams, boards = fit.problem.unpack(fit.x)
-    refined: dict[str, Intrinsics] = {}
-    if fit.problem.refine_intrinsics:
-        solved = (sensor_ids, fit.problem.image_sizes, fit.problem.intrinsics(fit.x))
-        for s, (width, height), k, kept in zip(*solved, fit.problem.fixed, strict=True):
-            if not kept:  # a sensor that kept its given intrinsics has none to write
-                refined[s] = Intrinsics(width, height, *(float(v) for v in k))
+    problem = fit.problem
+    cams, boards = problem.unpack(fit.x)
+    solved = _refined(
+        problem,
+        sensor_ids,
+        lambda: zip(problem.image_sizes, problem.intrinsics(fit.x), strict=True),
+    )
+    refined = {s: Intrinsics(w, h, *(float(v) for v in k)) for s, ((w, h), k) in solved.items()}
     return ExtrinsicCalibration(
         world_from_optical={s: world_from_ref @ invert(cams[i]) for i, s in enumerate(sensor_ids)},
         world_from_board={
@@ -319,30 +323,27 @@ def _report(fit: _Fit, sensor_ids: Sequence[str], reference: str, frame: str) ->
         rejected_views=fit.rejected_views,
         rejected_corners=int((~problem.mask).sum()),
         intrinsics_refined=problem.refine_intrinsics,
-        intrinsics_sd=(
-            {
-                s: tuple(float(v) for v in sd)
-                for s, sd, kept in zip(
-                    sensor_ids, problem.intrinsics_sd(fit.x), problem.fixed, strict=True
-                )
-                if not kept
-            }
-            if problem.refine_intrinsics
-            else {}
+        intrinsics_sd=_refined(
+            problem,
+            sensor_ids,
+            lambda: (tuple(float(v) for v in sd) for sd in problem.intrinsics_sd(fit.x)),
         ),
         intrinsics_evidence=dict(fit.evidence),
-        distortion_px=(
-            {
-                s: px
-                for s, px, kept in zip(
-                    sensor_ids, problem.distortion_px(fit.x).tolist(), problem.fixed, strict=True
-                )
-                if not kept
-            }
-            if problem.refine_intrinsics
-            else {}
-        ),
+        distortion_px=_refined(problem, sensor_ids, lambda: problem.distortion_px(fit.x).tolist()),
     )
+
+
+def _refined(
+    problem: BundleProblem, sensor_ids: Sequence[str], values: Callable[[], Iterable[T]]
+) -> dict[str, T]:
+    """``values()`` (one per sensor) of the sensors whose intrinsics were refined.
+
+    Empty when none were; a sensor that kept its given intrinsics has none to report.
+    """
+    if not problem.refine_intrinsics:
+        return {}
+    pairs = zip(sensor_ids, values(), problem.fixed, strict=True)
+    return {s: v for s, v, kept in pairs if not kept}
 
 
 # --------------------------------------------------------------------------- refinement

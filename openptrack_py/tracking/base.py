@@ -130,8 +130,8 @@ class SensorModel(Protocol):
 
     def cross_sensor_var(
         self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
-    ) -> np.ndarray:
-        """Variance added against tracks another sensor fed, ``(n, m)``.
+    ) -> np.ndarray | None:
+        """Variance added against tracks another sensor fed, ``(n, m)``; ``None``: none.
 
         ``last_sensor`` indexes ``names``: the two calibrations' unlearned disagreement.
         """

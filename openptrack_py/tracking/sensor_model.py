@@ -266,16 +266,17 @@ class OnlineSensorModel:
 
     def cross_sensor_var(
         self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
-    ) -> np.ndarray:
+    ) -> np.ndarray | None:
         """Variance per axis added to this sensor's detections against other sensors' tracks.
 
         ``(n, m)``: detections at ``distance`` against tracks whose last detection came
         from another sensor (``last_sensor``, indices into ``names``) get both sensors'
-        misalignment not yet learned; 0 against this sensor's own.
+        misalignment not yet learned; 0 against this sensor's own. ``None`` when
+        calibrations are trusted (nothing is ever added).
         """
-        out = np.zeros((len(last_sensor), len(distance)))
         if not self.estimate_bias or not any(self.calibration_sigma):
-            return out
+            return None
+        out = np.zeros((len(last_sensor), len(distance)))
         own = self._unlearned(sensor_id, distance)
         for k in np.unique(last_sensor).tolist():
             other = names[k] if 0 <= k < len(names) else None
@@ -459,9 +460,9 @@ class StaticSensorModel:
 
     def cross_sensor_var(
         self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
-    ) -> np.ndarray:
+    ) -> None:
         """Calibrations are trusted: nothing added."""
-        return np.zeros((len(last_sensor), len(distance)))
+        return None
 
     def clutter_density(self, sensor_id: str) -> float:
         """None known: never stops an association."""

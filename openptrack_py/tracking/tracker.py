@@ -319,10 +319,11 @@ class Tracker:
         scale = self.sensors.noise_scale(dets.sensor_id, dets.distance)
         names = list(self._sensor_index)  # by index
         extra = self.sensors.cross_sensor_var(dets.sensor_id, dets.distance, tb.last_sensor, names)
-        if (scale != 1.0).any() or extra.any():
+        if (scale != 1.0).any() or extra is not None:
             r = r.copy()
             r[..., 0:2, 0:2] *= scale[None, :, None, None]
-            r[..., 0:2, 0:2] += extra[..., None, None] * np.eye(2)
+            if extra is not None:
+                r[..., 0:2, 0:2] += extra[..., None, None] * np.eye(2)
         resid = z - proj.z[:, None, :]
         d2, logdet = mahalanobis(resid, proj.pzz[:, None], r)
         return proj, z, r, d2, logdet

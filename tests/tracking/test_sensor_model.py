@@ -141,7 +141,7 @@ def test_an_unlearned_calibration_widens_only_pairs_of_different_sensors() -> No
     for trusted in (OnlineSensorModel(), OnlineSensorModel(calibration_sigma=(0.12, 2.0),
                                                            estimate_bias=False),
                     StaticSensorModel()):  # fmt: skip
-        assert not trusted.cross_sensor_var("a", distance, last, ["a", "b"]).any()
+        assert trusted.cross_sensor_var("a", distance, last, ["a", "b"]) is None
 
 
 def test_coverage_is_where_a_sensor_reported_something() -> None:
