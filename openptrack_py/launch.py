@@ -33,6 +33,7 @@ from openptrack_py.config.network import (
     TRACKER,
     detector_node_name,
 )
+from openptrack_py.runtime.stop import StopRequest
 
 LOCAL_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 
@@ -194,7 +195,9 @@ class Supervisor:
         self.stop_timeout_s = stop_timeout_s
         self.env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
         self._lock = threading.Lock()
-        self._stop = threading.Event()
+        self._stop = StopRequest(
+            on_signal=lambda name: self.say("launch", f"{name}: stopping all nodes")
+        )
 
     def say(self, name: str, line: str) -> None:
         """Print one prefixed line."""
@@ -260,8 +263,12 @@ class Supervisor:
         self.say("launch", f"{child.spec.name} {how}; restarting in {delay:g} s")
 
     def request_stop(self) -> None:
-        """Ask :meth:`run` to stop all nodes and return (safe from signal handlers)."""
+        """Ask :meth:`run` to stop all nodes and return (from another thread)."""
         self._stop.set()
+
+    def install_signal_handlers(self) -> None:
+        """Make SIGINT and SIGTERM stop all nodes (main thread only; the handler takes no lock)."""
+        self._stop.install()
 
     def run(self, duration_s: float | None = None) -> int:
         """Start every node and supervise until stopped, the duration ends or all finish.

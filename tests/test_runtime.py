@@ -7,6 +7,7 @@ import json
 import logging
 import os
 import signal
+import threading
 
 import pytest
 
@@ -18,6 +19,7 @@ from openptrack_py.messages import (
     encode_detection_batch,
 )
 from openptrack_py.runtime import Counters, Inbox, Node, RateLimitedLog, configure_logging
+from openptrack_py.runtime.stop import StopRequest
 from openptrack_py.transport import MemoryBus, MemoryNetwork
 
 
@@ -172,6 +174,36 @@ def test_sigterm_stops_the_node_cleanly() -> None:
         finally:
             signal.signal(signal.SIGTERM, previous)
             signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def test_a_signal_arriving_while_its_thread_holds_the_stop_lock_does_not_hang_it() -> None:
+    # Python runs a handler between two bytecodes of the main thread, possibly just after
+    # Event.wait took the event's lock again; a handler calling Event.set() then waits
+    # for its own thread forever (the launcher once hung this way on SIGTERM). Here the
+    # handler runs with that lock held by its own thread, as it would in that window.
+    announced: list[str] = []
+    stop = StopRequest(on_signal=announced.append)
+    handled = threading.Event()
+
+    def handler_inside_the_window() -> None:
+        with stop._event._cond:  # the lock Event.wait holds between wake-up and return
+            stop.from_signal(signal.SIGTERM)
+        handled.set()
+
+    thread = threading.Thread(target=handler_inside_the_window, daemon=True)
+    thread.start()
+    thread.join(timeout=10.0)
+    assert handled.is_set(), "the signal handler blocked on a lock its own thread holds"
+    assert stop.wait(timeout=5.0) and stop.is_set()
+    assert announced == ["SIGTERM"]  # announced once, outside the handler
+    assert stop.wait(0) and announced == ["SIGTERM"]
+
+
+def test_a_stop_request_waits_out_its_timeout_when_nobody_asks() -> None:
+    stop = StopRequest()
+    assert not stop.wait(0.05) and not stop.is_set()
+    stop.set()
+    assert stop.wait(None)
 
 
 def test_stats_go_out_periodically_on_their_own_thread() -> None:

@@ -7,10 +7,8 @@ The command line only; planning and supervising the node processes is
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
-from types import FrameType
 from typing import TYPE_CHECKING
 
 from openptrack_py.cli.common import EXIT_CONFIG, add_log_options
@@ -85,12 +83,7 @@ def run(args: argparse.Namespace) -> int:
     if hub is not None:
         supervisor.say("launch", f"hub listening on {cfg.zenoh.hub}")
 
-    def on_signal(signum: int, _frame: FrameType | None) -> None:
-        supervisor.say("launch", f"{signal.Signals(signum).name}: stopping all nodes")
-        supervisor.request_stop()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    supervisor.install_signal_handlers()
     board = StatusBoard(hub, cfg.site) if hub is not None else None
     stop = None
     if hub is not None and board is not None and (args.status_interval > 0 or args.table):

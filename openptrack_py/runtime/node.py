@@ -9,13 +9,11 @@ node's own loop; when the loop falls behind, the oldest are dropped and counted.
 from __future__ import annotations
 
 import logging
-import signal
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from types import FrameType
 from typing import Any, Generic, TypeVar
 
 from openptrack_py.errors import WireFormatError
@@ -23,6 +21,7 @@ from openptrack_py.messages.codec import encode_node_stats
 from openptrack_py.runtime.counters import Counters
 from openptrack_py.runtime.logs import RateLimitedLog
 from openptrack_py.runtime.memory import release_memory
+from openptrack_py.runtime.stop import StopRequest
 from openptrack_py.transport.base import Bus, Closable, Publisher, Sample
 from openptrack_py.transport.keys import SiteKeys
 
@@ -147,7 +146,7 @@ class Node:
         self.log = logging.getLogger(f"openptrack.{name}")
         self.bad_input = RateLimitedLog(self.log, interval_s=5.0)
         self.stats_interval_s = stats_interval_s
-        self._stop = threading.Event()
+        self._stop = StopRequest(on_signal=self._log_signal)
         self._declared: list[Closable] = []
         self._stats_thread: threading.Thread | None = None
         self._stats_pub: Publisher | None = None
@@ -191,13 +190,10 @@ class Node:
 
     def install_signal_handlers(self) -> None:
         """Make SIGINT and SIGTERM stop the node cleanly (main thread only)."""
+        self._stop.install()
 
-        def handle(signum: int, _frame: FrameType | None) -> None:
-            self.log.info("stopping", extra={"fields": {"signal": signal.Signals(signum).name}})
-            self.stop()
-
-        signal.signal(signal.SIGINT, handle)
-        signal.signal(signal.SIGTERM, handle)
+    def _log_signal(self, name: str) -> None:
+        self.log.info("stopping", extra={"fields": {"signal": name}})
 
     def close(self) -> None:
         """Stop, publish final stats, undeclare everything declared through the node."""
