@@ -93,4 +93,8 @@ def test_roster_commands_against_a_running_demo(
     unknown = _cli(net, "roster", "remove", "Ada")
     assert unknown.returncode == 2 and "nobody named 'Ada'" in unknown.stderr
     launcher.terminate()
-    assert launcher.wait(timeout=20) == 0
+    try:
+        code = launcher.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"the launcher did not stop 20 s after SIGTERM:\n{log.read_text()[-4000:]}")
+    assert code == 0
