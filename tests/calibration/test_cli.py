@@ -239,7 +239,7 @@ def board_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The session as three sensors' computers record it (a folder each, unsynchronised,
     the board held still a few frames at each placement, then laid on the floor)."""
     session = tmp_path_factory.mktemp("board") / "session"
-    done = _cli("checkerboard", "demo", "--sim", "--placements", "16", "--record", str(session))
+    done = _cli("checkerboard", "demo", "--sim", "--placements", "10", "--record", str(session))
     assert done.returncode == 0, done.stderr[-2000:]
     assert sorted(p.name for p in session.iterdir()) == ["k2_a", "k2_b", "k2_c"]
     return session
@@ -401,8 +401,8 @@ def test_checkerboard_live_from_each_sensors_board_node(
     # sensors rendering their view of the same scripted session as it goes
     sources = {
         "k2_a": ("--input", str(board_session / "k2_a")),
-        "k2_b": ("--placements", "16", "--speed", "0"),
-        "k2_c": ("--placements", "16", "--speed", "0"),
+        "k2_b": ("--placements", "10", "--speed", "0"),
+        "k2_c": ("--placements", "10", "--speed", "0"),
     }
     board = ("-m", "openptrack_py.nodes.board", "-c", str(network))
     boards = [
