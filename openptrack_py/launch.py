@@ -283,17 +283,19 @@ class Supervisor:
                 self.stop_all()
                 return 1
         deadline = None if duration_s is None else time.monotonic() + duration_s
-        while not self._stop.is_set():
-            now = time.monotonic()
-            if deadline is not None and now >= deadline:
-                self.say("launch", f"duration of {duration_s:g} s reached")
-                break
-            for child in self.children:
-                self._check(child, now)
-            if self.children and all(c.finished for c in self.children):
-                break
-            self._stop.wait(0.1)
-        self.stop_all()
+        try:  # the nodes are stopped whatever ends the loop (a failed print included)
+            while not self._stop.is_set():
+                now = time.monotonic()
+                if deadline is not None and now >= deadline:
+                    self.say("launch", f"duration of {duration_s:g} s reached")
+                    break
+                for child in self.children:
+                    self._check(child, now)
+                if self.children and all(c.finished for c in self.children):
+                    break
+                self._stop.wait(0.1)
+        finally:
+            self.stop_all()
         return 0
 
     def stop_all(self) -> None:

@@ -127,6 +127,33 @@ def test_stop_escalates_to_kill_for_a_node_that_ignores_sigint() -> None:
     assert sup.pids() == {}
 
 
+class _ClosedAfterStart(io.StringIO):
+    """Output that breaks (a closed terminal) when the stop is announced."""
+
+    def write(self, text: str) -> int:
+        if "stopping all nodes" in text:
+            raise BrokenPipeError("the terminal is gone")
+        return super().write(text)
+
+
+def test_nodes_are_stopped_even_when_announcing_the_stop_fails() -> None:
+    sup = Supervisor([_crasher("tracker", 0, 60.0)], out=_ClosedAfterStart(),
+                     env={"PYTHONPATH": str(ROOT)})  # fmt: skip
+    pids: list[int] = []
+
+    def signal_once_up() -> None:
+        wait_for(lambda: "tracker" in sup.pids(), 10, "the node")
+        pids.append(sup.pids()["tracker"])
+        sup._stop.from_signal(signal.SIGTERM)  # what the installed handler does
+
+    threading.Thread(target=signal_once_up, daemon=True).start()
+    with pytest.raises(BrokenPipeError):
+        sup.run(duration_s=30.0)
+    assert sup.pids() == {} and len(pids) == 1
+    with pytest.raises(ProcessLookupError):
+        os.kill(pids[0], 0)  # stopped and reaped
+
+
 # ---------------------------------------------------------------- whole network
 
 
