@@ -5,15 +5,19 @@ from __future__ import annotations
 import re
 import signal
 import subprocess
+import time
 from collections.abc import Callable
 from pathlib import Path
 
 import orjson
 import pytest
 
+from openptrack_py.config import ZenohConfig
 from openptrack_py.messages import decode_detection_batch
 from openptrack_py.recordings import read_recording
+from openptrack_py.transport.zenoh_bus import ZenohBus
 from tests.conftest import free_port, wait_for
+from tests.procs.publisher import batch
 
 pytestmark = pytest.mark.zenoh
 
@@ -85,3 +89,41 @@ def test_malformed_bytes_are_counted_dropped_and_survived(
     warnings = [x for x in log.splitlines() if "dropped malformed message" in x]
     assert len(warnings) == 1, warnings
     assert "error=" in warnings[0] and "opt/default/detections/k1" in warnings[0]
+
+
+@pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["sigint", "sigterm"])
+def test_record_and_echo_end_cleanly_on_a_signal(
+    spawn: Callable[..., subprocess.Popen[str]], tmp_path: Path, stop_signal: signal.Signals
+) -> None:
+    """Ctrl-C (or SIGTERM) ends ``openptrack record`` and ``echo`` with status 0 and
+    keeps what they received: the signal only asks their loop to end, so it can never
+    interrupt them inside a lock (their handlers store the signal, nothing more)."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    out = tmp_path / "recorded.jsonl"
+    zenoh = ("--set", "zenoh.hub=null", "--no-multicast-scouting")
+    record = spawn("-m", "openptrack_py.cli", "record", "-l", endpoint, *zenoh, "-o", str(out),
+                   "-k", "detections/**", name="record")  # fmt: skip
+    echo = spawn("-m", "openptrack_py.cli", "echo", "opt/default/detections/**", "-e", endpoint,
+                 *zenoh, name="echo")  # fmt: skip
+    echoed = Path(echo.log_path)  # type: ignore[attr-defined]
+
+    def both_received() -> bool:
+        recorded = out.exists() and len(out.read_bytes().splitlines()) >= 1
+        return recorded and echoed.read_text().count('"key"') >= 1
+
+    cfg = ZenohConfig(hub=None, connect=[endpoint], listen=[], multicast_scouting=False)
+    with ZenohBus(cfg) as bus:  # publish until both have subscribed and received
+        pub = bus.publisher("opt/default/detections/k1")
+        deadline, seq = time.monotonic() + 60, 0
+        while not both_received() and time.monotonic() < deadline:
+            pub.put(batch(seq))
+            seq += 1
+            time.sleep(0.02)
+    assert both_received(), "record or echo never received a message"
+    for proc in (record, echo):
+        proc.send_signal(stop_signal)
+    assert record.wait(timeout=15) == 0, Path(record.log_path).read_text()  # type: ignore[attr-defined]
+    assert echo.wait(timeout=15) == 0, echoed.read_text()
+    said = re.findall(r"recorded (\d+) messages", Path(record.log_path).read_text())  # type: ignore[attr-defined]
+    assert said and int(said[-1]) == len(list(read_recording(out))) >= 1
+    assert "Traceback" not in echoed.read_text()

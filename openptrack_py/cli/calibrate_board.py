@@ -103,6 +103,7 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
 
     from openptrack_py.calibration.board_collector import BoardCollector
     from openptrack_py.runtime.args import bus_from_args
+    from openptrack_py.runtime.stop import stop_on_signals
     from openptrack_py.transport.keys import SiteKeys
 
     board = board_from_arg(args.board)  # a bad --board is refused before listening
@@ -120,10 +121,11 @@ def from_live(network: Any, args: argparse.Namespace, progress_view: Callable) -
         )
         start = time.monotonic()
         try:
-            while time.monotonic() - start < args.live and not collector.finished:
-                time.sleep(0.1)
-        except KeyboardInterrupt:  # Ctrl-C: the session is over, solve what came
-            print("\ncheckerboard: stopped listening (Ctrl-C)", file=sys.stderr)
+            with stop_on_signals() as stop:  # Ctrl-C: the session is over, solve what came
+                while time.monotonic() - start < args.live and not collector.finished:
+                    if stop.wait(0.1):
+                        print("\ncheckerboard: stopped listening (Ctrl-C)", file=sys.stderr)
+                        break
         finally:
             subscription.close()
         final = shown.inner.snapshot()

@@ -37,16 +37,17 @@ def run(args: argparse.Namespace) -> int:
     """Print messages until ``--count``, ``--duration``, Ctrl-C or a closed pipe."""
     from openptrack_py.messages.by_key import decoder_for_key
     from openptrack_py.runtime.node import Inbox
+    from openptrack_py.runtime.stop import stop_on_signals
 
     start_logging(args)
     cfg = network_from_args(args)
     inbox: Inbox[tuple[float, str, bytes]] = Inbox(100_000)
-    with bus_from_args(cfg, args) as bus:
+    with bus_from_args(cfg, args) as bus, stop_on_signals() as stop:
         sub = bus.subscribe(args.keyexpr, lambda s: inbox.push((time.time(), s.key, s.payload)))
         deadline = None if args.duration is None else time.monotonic() + args.duration
         printed = malformed = 0
         try:
-            while args.count is None or printed < args.count:
+            while (args.count is None or printed < args.count) and not stop.is_set():
                 left = None if deadline is None else deadline - time.monotonic()
                 if left is not None and left <= 0:
                     break
@@ -65,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
                 sys.stdout.write(orjson.dumps(_line(received, key, payload)).decode() + "\n")
                 sys.stdout.flush()
                 printed += 1
-        except (KeyboardInterrupt, BrokenPipeError):
+        except BrokenPipeError:
             pass
         finally:
             sub.close()

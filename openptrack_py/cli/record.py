@@ -41,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from openptrack_py.errors import ConfigError
     from openptrack_py.recorder import Recorder
     from openptrack_py.runtime.node import Node
+    from openptrack_py.runtime.stop import stop_on_signals
 
     start_logging(args)
     cfg = network_from_args(args)
@@ -58,18 +59,18 @@ def run(args: argparse.Namespace) -> int:
         progress = ProgressLine()
         start = time.monotonic()
         try:
-            while worker.is_alive():
-                elapsed = time.monotonic() - start
-                if args.duration is not None and elapsed >= args.duration:
-                    break
-                size = recorder.path.stat().st_size if recorder.path.exists() else 0
-                progress.show(
-                    f"recording {recorder.path}: {elapsed:5.0f} s, {recorder.lines} messages, "
-                    f"{size / 1e6:.1f} MB"
-                )
-                time.sleep(0.5)
-        except KeyboardInterrupt:
-            pass
+            with stop_on_signals() as stop:  # Ctrl-C or SIGTERM: what was written stays
+                while worker.is_alive():
+                    elapsed = time.monotonic() - start
+                    if args.duration is not None and elapsed >= args.duration:
+                        break
+                    size = recorder.path.stat().st_size if recorder.path.exists() else 0
+                    progress.show(
+                        f"recording {recorder.path}: {elapsed:5.0f} s, "
+                        f"{recorder.lines} messages, {size / 1e6:.1f} MB"
+                    )
+                    if stop.wait(0.5):
+                        break
         finally:
             node.stop()
             worker.join()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import time
 from typing import TYPE_CHECKING
 
 import orjson
@@ -34,14 +33,14 @@ def run(args: argparse.Namespace) -> int:
     """Print the live nodes once (status 1 if none) or, with ``--watch``, until Ctrl-C."""
     from openptrack_py.eval.runner import format_table
     from openptrack_py.runtime.status import StatusBoard
+    from openptrack_py.runtime.stop import stop_on_signals
 
     start_logging(args)
     cfg = network_from_args(args)
-    with bus_from_args(cfg, args) as bus:
+    with bus_from_args(cfg, args) as bus, stop_on_signals() as stop:
         board = StatusBoard(bus, cfg.site)
         try:
-            while True:
-                time.sleep(args.wait)
+            while not stop.wait(args.wait):
                 rows = board.rows()
                 if args.format == "json":
                     print(orjson.dumps(rows).decode(), flush=True)
@@ -52,7 +51,6 @@ def run(args: argparse.Namespace) -> int:
                     print(f"site {cfg.site!r}:\n{text}", flush=True)
                 if not args.watch:
                     return 0 if rows else 1
-        except KeyboardInterrupt:
             return 0
         finally:
             board.close()

@@ -15,10 +15,11 @@ every :data:`POLL_S` to look.
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from types import FrameType
 
 POLL_S = 0.1
@@ -76,3 +77,25 @@ class StopRequest:
                 return False
             self._event.wait(left)
         return True
+
+
+@contextlib.contextmanager
+def stop_on_signals(on_signal: Callable[[str], None] | None = None) -> Iterator[StopRequest]:
+    """A :class:`StopRequest` that SIGINT and SIGTERM make while the block runs.
+
+    For a command's polling loop (Ctrl-C ends it, as a ``KeyboardInterrupt`` would, but
+    never inside a lock the loop holds). The previous handlers come back after the block.
+    Outside the main thread no handler can be installed: the request is then only set
+    by :meth:`StopRequest.set`.
+    """
+    stop = StopRequest(on_signal)
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    stop.install(*previous)
+    try:
+        yield stop
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
