@@ -4,8 +4,8 @@ Python runs a signal handler in the main thread between two bytecodes, possibly 
 that thread holds a lock: inside :meth:`threading.Event.wait`, for one, the event's
 condition lock is held again for a moment after every wake-up. A handler that calls
 ``Event.set()`` (or logs, or prints under a lock) there waits for a lock its own thread
-holds and never returns; a process asked to stop hangs instead (it happens about once in
-a few thousand signals to a thread that waits on an event in a loop).
+holds and never returns; a process asked to stop hangs instead (a thread polling an event
+in a tight loop was caught there by 5 of 13,456 signals in one measurement).
 
 :meth:`StopRequest.from_signal` therefore only stores the signal number (one attribute
 assignment). The request is turned into an event, and announced, by whichever thread next
