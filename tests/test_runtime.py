@@ -180,8 +180,8 @@ def test_a_signal_arriving_while_its_thread_holds_the_stop_lock_does_not_hang_it
     # Python runs a handler between two bytecodes of the main thread, possibly just after
     # Event.wait took the event's lock again; a handler calling Event.set() then waits
     # for its own thread forever (the likely cause of a launcher that once did not stop on
-    # SIGTERM). Here the
-    # handler runs with that lock held by its own thread, as it would in that window.
+    # SIGTERM). Here the handler runs with that lock held by its own thread, as it would
+    # in that window.
     announced: list[str] = []
     stop = StopRequest(on_signal=announced.append)
     handled = threading.Event()
