@@ -80,7 +80,7 @@ class StopRequest:
 
 
 @contextlib.contextmanager
-def stop_on_signals(on_signal: Callable[[str], None] | None = None) -> Iterator[StopRequest]:
+def stop_on_signals() -> Iterator[StopRequest]:
     """A :class:`StopRequest` that SIGINT and SIGTERM make while the block runs.
 
     For a command's polling loop (Ctrl-C ends it, as a ``KeyboardInterrupt`` would, but
@@ -88,7 +88,7 @@ def stop_on_signals(on_signal: Callable[[str], None] | None = None) -> Iterator[
     Outside the main thread no handler can be installed: the request is then only set
     by :meth:`StopRequest.set`.
     """
-    stop = StopRequest(on_signal)
+    stop = StopRequest()
     if threading.current_thread() is not threading.main_thread():
         yield stop
         return
