@@ -127,3 +127,31 @@ def test_record_and_echo_end_cleanly_on_a_signal(
     said = re.findall(r"recorded (\d+) messages", Path(record.log_path).read_text())  # type: ignore[attr-defined]
     assert said and int(said[-1]) == len(list(read_recording(out))) >= 1
     assert "Traceback" not in echoed.read_text()
+
+
+@pytest.mark.parametrize("stop_signal", [signal.SIGINT, signal.SIGTERM], ids=["sigint", "sigterm"])
+def test_record_sensor_ends_cleanly_on_a_signal(
+    spawn: Callable[..., subprocess.Popen[str]], tmp_path: Path, stop_signal: signal.Signals
+) -> None:
+    """Ctrl-C (or SIGTERM) ends ``openptrack record-sensor`` with status 0 after the
+    frame being read: the frames it says it wrote are all listed and replay whole."""
+    from openptrack_py.detection.sources import FolderSource
+
+    out = tmp_path / "rec"
+    proc = spawn("-m", "openptrack_py.cli", "record-sensor", "sim:crowd", str(out),
+                 name="record-sensor")  # fmt: skip
+    listed = out / "frames.csv"
+
+    def written() -> int:  # frames listed (the header row not counted)
+        return len(listed.read_text().splitlines()) - 1 if listed.exists() else 0
+
+    wait_for(lambda: written() >= 3, 120, "three frames")
+    proc.send_signal(stop_signal)
+    log = Path(proc.log_path)  # type: ignore[attr-defined]
+    assert proc.wait(timeout=30) == 0, log.read_text()
+    said = re.findall(r"recorded (\d+) frames", log.read_text())
+    rows = written()
+    assert said and int(said[-1]) == rows >= 3, log.read_text()
+    replayed = list(FolderSource(out).frames())
+    assert len(replayed) == rows
+    assert all(f.depth is not None and f.depth.shape == replayed[0].depth.shape for f in replayed)

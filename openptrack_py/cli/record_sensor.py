@@ -40,30 +40,34 @@ def add_parser(subparsers: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Record until the source ends, ``--frames``, ``--seconds`` or Ctrl-C."""
+    """Record until the source ends, ``--frames``, ``--seconds``, Ctrl-C or SIGTERM.
+
+    A signal ends the recording after the frame being read: every frame written stays
+    whole and listed in ``frames.csv``.
+    """
     from collections.abc import Iterator
 
     from openptrack_py.detection.frame import Frame
     from openptrack_py.detection.sources import open_source, record_folder
     from openptrack_py.errors import SourceError
+    from openptrack_py.runtime.stop import StopRequest, stop_on_signals
 
-    def limited(frames: Iterator[Frame]) -> Iterator[Frame]:
+    def limited(frames: Iterator[Frame], stop: StopRequest) -> Iterator[Frame]:
         first = None
-        try:
-            for frame in frames:
-                first = frame.stamp if first is None else first
-                if args.seconds is not None and frame.stamp - first >= args.seconds:
-                    return
-                yield frame
-        except KeyboardInterrupt:  # Ctrl-C ends a live recording; what was written stays
-            return
+        for frame in frames:
+            first = frame.stamp if first is None else first
+            if stop.is_set() or (args.seconds is not None and frame.stamp - first >= args.seconds):
+                return
+            yield frame
 
     try:
         from openptrack_py.cli.detect import sim_source
 
         source = open_source(args.source, extra={"sim": sim_source})
         try:
-            count = record_folder(limited(source.frames()), args.outdir, max_frames=args.frames)
+            with stop_on_signals() as stop:
+                frames = limited(source.frames(), stop)
+                count = record_folder(frames, args.outdir, max_frames=args.frames)
         finally:
             source.close()
     except SourceError as exc:
