@@ -478,9 +478,12 @@ def corner_outliers(
     """Corners to reject: per view, the worst corner if its error is far above the rest.
 
     Far above: beyond both half of ``reject_px`` and four times the median corner error
-    (a corner error is Rayleigh-distributed: four medians are 4.7 standard deviations
-    per axis, which a well-found corner passes once in 60 thousand). One corner per view
-    at a time, as for views.
+    of the view's sensor (a corner error is Rayleigh-distributed: four medians are 4.7
+    standard deviations per axis, which a well-found corner passes once in 60 thousand).
+    Each sensor against its own median: a camera whose corners are noisier than the
+    others' (lower resolution, a blurred or far board) is honest, and measured against
+    the sharper cameras it would lose a corner in every other view, round after round.
+    One corner per view at a time, as for views.
 
     Returns
     -------
@@ -488,6 +491,10 @@ def corner_outliers(
         ``(view, corner)`` indices to reject.
     """
     errors = np.where(problem.mask, problem.view_errors(x), 0.0)
-    limit = max(0.5 * reject_px, 4.0 * float(np.median(errors[problem.mask])))
+    median = np.zeros(int(problem.view_sensor.max(initial=-1)) + 1)
+    for s in np.unique(problem.view_sensor):
+        mine = problem.view_sensor == s
+        median[s] = np.median(errors[mine][problem.mask[mine]])
+    limit = np.maximum(0.5 * reject_px, 4.0 * median[problem.view_sensor])
     worst = np.argmax(errors, axis=1)
     return [(int(v), int(worst[v])) for v in np.flatnonzero(errors.max(axis=1) > limit)]
