@@ -239,8 +239,16 @@ class IdentityModel(Protocol):
     ) -> None:
         """Tracks ``rows`` are about to be removed at time ``t``.
 
-        ``reason``: ``"deleted"`` (lost), ``"merged"`` (folded into another track) or
-        ``"reattached"`` (its person continues under an older track's id).
+        ``reason``: ``"deleted"`` (lost), ``"merged"`` (folded into another track),
+        ``"reattached"`` (its person continues under an older track's id) or ``"handed
+        over"`` (the track goes on under a new id, following someone else).
+        """
+
+    def handed_over(self, table: TrackTable) -> np.ndarray:
+        """Rows of the tracks found to follow someone else since they were lost.
+
+        The tracker splits each: the person it had ends, the one it follows now gets a
+        new track id (:meth:`ended` then :meth:`started` are called for it).
         """
 
     def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:

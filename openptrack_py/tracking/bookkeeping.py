@@ -204,6 +204,12 @@ def fold_into(tb: TrackTable, keep: np.ndarray, drop: np.ndarray) -> None:
     _remove(tb, drop)
 
 
+def renumber(tb: TrackTable, rows: np.ndarray, first_id: int, t: float) -> None:
+    """Tracks ``rows`` go on as new tracks from ``t``, with ids from ``first_id`` on."""
+    tb.ids[rows] = np.arange(first_id, first_id + len(rows), dtype=np.int64)
+    tb.first_seen[rows] = t
+
+
 def take_over(tb: TrackTable, lost: np.ndarray, found: np.ndarray) -> None:
     """Tracks ``found`` take the ids (and start times) of ``lost``, which are removed."""
     tb.ids[found] = tb.ids[lost]

@@ -49,6 +49,7 @@ from openptrack_py.tracking.bookkeeping import (
     fold_into,
     learnable_updates,
     new_rows,
+    renumber,
     take_over,
     update_support,
 )
@@ -68,15 +69,9 @@ from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKa
 log = logging.getLogger(__name__)
 
 COUNTERS = (
-    "steps",
-    "late_applied",
-    "late_dropped",
-    "replayed_steps",
-    "tracks_started",
-    "tracks_deleted",
-    "tracks_merged",
-    "tracks_reattached",
-)
+    "steps", "late_applied", "late_dropped", "replayed_steps", "tracks_started",
+    "tracks_deleted", "tracks_merged", "tracks_reattached", "tracks_split",
+)  # fmt: skip
 """The tracker's counters (reported in the tracker node's stats)."""
 
 
@@ -263,7 +258,7 @@ class Tracker:
         dt = self._predict_to(t)
         assigned, d2 = self._associate_and_update(dets, t, dt)
         self._start_tracks(dets, assigned, d2, t)
-        self._lifecycle(t)
+        self._lifecycle(t, dets)
 
     def _snapshot(self) -> _Snapshot:
         c = self.counters
@@ -444,7 +439,7 @@ class Tracker:
         self.table.append(**new_rows(dets, new, ids, t, pos_var, index, self.params))
         self.identity.started(self.table, np.arange(first, first + n), dets.subset(new), t)
 
-    def _lifecycle(self, t: float) -> None:
+    def _lifecycle(self, t: float, dets: DetectionArrays) -> None:
         tb = self.table
         if not len(tb):
             return
@@ -453,6 +448,7 @@ class Tracker:
         tb.confirmed = self.initiator.confirm(tb, t, continuing)
         self._reattach(t, np.flatnonzero(tb.confirmed & ~was))
         self._merge(t)
+        self._split(t, dets)
         gone = self.deleter.delete(tb, t)
         if gone.any():
             self.identity.ended(tb, np.flatnonzero(gone), t)
@@ -481,6 +477,16 @@ class Tracker:
             fold_into(self.table, keep, drop)
             self.counters["tracks_merged"] += len(drop)
             self.counters["tracks_deleted"] += len(drop)
+
+    def _split(self, t: float, dets: DetectionArrays) -> None:
+        """A track found to follow someone else since it was lost goes on under a new id."""
+        rows = self.identity.handed_over(self.table)
+        if len(rows):
+            self.identity.ended(self.table, rows, t, "handed over")
+            renumber(self.table, rows, self.max_id + 1, t)
+            self.max_id += len(rows)
+            self.identity.started(self.table, rows, dets, t)
+            self.counters["tracks_split"] += len(rows)
 
     def _reattach(self, t: float, new: np.ndarray) -> None:
         """A track confirmed now takes the id of the lost track its person had."""

@@ -53,6 +53,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from openptrack_py.config.identity import IdentityConfig
+from openptrack_py.tracking.identity.handovers import GapWatch
 from openptrack_py.tracking.identity.heights import HeightBias
 from openptrack_py.tracking.identity.likelihood import (
     ISOLATION_M,
@@ -120,7 +121,9 @@ class AppearanceIdentity:
         self.returns = ReturnRate()
         self.roster = Roster()
         self.swaps = SwapWatch(config.link_margin, config.reid_window_s, MIN_REID_OBSERVATIONS)
-        self.counters = {"reidentified": 0, "unlinked": 0, "swapped_back": 0}
+        self.gaps = GapWatch(config.link_margin, config.reid_window_s, MIN_REID_OBSERVATIONS)
+        self.split: dict[int, float] = {}  # tracks to split now: when their person was lost
+        self.counters = {"reidentified": 0, "unlinked": 0, "swapped_back": 0, "handed_over": 0}
         self.told: list[tuple[int, str]] = []  # name_track's calls, in order
         self.set_roster(roster or Roster())
 
@@ -233,6 +236,10 @@ class AppearanceIdentity:
         if certain is None:
             certain = np.zeros(len(rows), dtype=bool)
         rows, cols, mrows, certain = rows[ok], cols[ok], mrows[ok], certain[ok]
+        known = table.confirmed[rows] & (
+            (m.sig_n[mrows] >= self.cfg.min_observations) | (m.emb_w[mrows] > 0)
+        )
+        self.gaps.seen(table.ids[rows], known, t, lambda ids: self._models_side(m.rows(ids)))
         # two people, not one person and a spurious second blob beside them (weaker,
         # and overlapping them in the image)
         sure = looks.clean[cols] & (dets.confidence[cols] >= self.cfg.clean_min_confidence)
@@ -283,6 +290,8 @@ class AppearanceIdentity:
         mrows, cols = mrows[useful], cols[useful]
         seen = _looks_side(looks, cols, has_sig[useful], heights[useful], has_hgt[useful])
         self._watch_swaps(table, m.ids[mrows], seen, t)
+        self.gaps.observe(m.ids[mrows], seen, lambda a, b: self._pair_llr(a, b, rowwise=True))
+        self.split.update(self.gaps.decide(t, table.ids))
         if len(mrows):
             self._gather_evidence(mrows, cols, dets, seen, t)
         self._decide(table, t)
@@ -377,13 +386,22 @@ class AppearanceIdentity:
         m.learn_height(mrows[clean], heights[clean], self.cfg.visit_rate)
         return heights
 
+    def handed_over(self, table: TrackTable) -> np.ndarray:
+        """Rows of the tracks that follow someone else since a gap (:mod:`.handovers`)."""
+        if not self.split:
+            return np.zeros(0, dtype=np.int64)
+        rows = np.flatnonzero(np.isin(table.ids, list(self.split)))
+        self.split = {i: s for i, s in self.split.items() if i in set(table.ids[rows].tolist())}
+        return rows
+
     def ended(
         self, table: TrackTable, rows: np.ndarray, t: float, reason: str = "deleted"
     ) -> None:
         """Tracks ``rows`` end: a confirmed person's identity waits in the pool.
 
         ``reason``: ``"deleted"`` (lost), ``"merged"`` (a duplicate folded into another
-        track) or ``"reattached"`` (its track id continues under an older one).
+        track), ``"reattached"`` (its track id continues under an older one) or
+        ``"handed over"`` (its track goes on with someone else, under a new id).
         """
         m = self.models
         ids = table.ids[rows]
@@ -399,7 +417,7 @@ class AppearanceIdentity:
             began = self.since.pop(tid, None)
             if mr < 0:
                 continue
-            keep = reason == "deleted" and bool(table.confirmed[row])
+            keep = reason in ("deleted", "handed over") and bool(table.confirmed[row])
             heights = m.hgt_n[mr] if self._uses_heights else 0.0
             keep &= max(m.sig_n[mr], heights) >= self.cfg.min_observations or m.emb_w[mr] > 0
             if keep and self.cfg.pool_s > 0:
@@ -408,7 +426,8 @@ class AppearanceIdentity:
                     PooledIdentity(
                         stable=int(m.stable[mr]), sig=m.visit[mr].copy(), sig_n=float(m.sig_n[mr]),
                         emb=m.emb[mr].copy(), emb_w=float(m.emb_w[mr]),
-                        xy=table.recent_xy[row].copy(), lost_at=float(table.last_seen[row]),
+                        xy=table.recent_xy[row].copy(),
+                        lost_at=self.split.pop(tid, float(table.last_seen[row])),
                         name_ev=m.name_ev[mr].copy(), impostor=self._impostor(mr),
                         hgt=float(m.hgt[mr]), hgt_n=float(m.hgt_n[mr]), born_at=born,
                     )
@@ -861,7 +880,7 @@ class AppearanceIdentity:
             self.colour.state(), self.face.state(), dict(self.apart), self.returns.state(),
             dict(self.together), tuple(self.roster.names), len(self.told),
             self.stature.state(), self.height_bias.state(), dict(self.resembled), dict(self.since),
-            self.swaps.state(),
+            self.swaps.state(), self.gaps.state(),
         )  # fmt: skip
 
     def restore(self, state: tuple) -> None:
@@ -888,6 +907,8 @@ class AppearanceIdentity:
         self.resembled = dict(rest[6]) if len(rest) > 6 else {}
         self.since = dict(rest[7]) if len(rest) > 7 else {}
         self.swaps.restore(rest[8] if len(rest) > 8 else ({}, -np.inf))
+        self.gaps.restore(rest[9] if len(rest) > 9 else ({}, {}))
+        self.split = {}
         if len(rest) > 2:  # the roster may have changed since: names follow by name
             self._follow_roster(rest[2])
             for track_id, name in self.told[rest[3] :]:  # said since: said again

@@ -44,6 +44,10 @@ class NullIdentity:
     ) -> None:
         """Nothing to forget."""
 
+    def handed_over(self, table: TrackTable) -> np.ndarray:
+        """No track is known to follow someone else."""
+        return np.zeros(0, dtype=np.int64)
+
     def distinct(self, table: TrackTable, rows_a: np.ndarray, rows_b: np.ndarray) -> np.ndarray:
         """Nothing known: no pair is known to be two people."""
         return np.zeros(len(rows_a), dtype=bool)

@@ -122,8 +122,8 @@ class SwapWatch:
             return
         befores = [self.watches[p].before for p in pairs]
         seen = seen.take(np.array(obs))
-        diff = llr(seen, _stack(befores, [1 - s for s in sides])) - llr(
-            seen, _stack(befores, sides)
+        diff = llr(seen, stack_rows(befores, [1 - s for s in sides])) - llr(
+            seen, stack_rows(befores, sides)
         )
         for pair, side, d in zip(pairs, sides, diff.tolist(), strict=True):
             watch = self.watches[pair]
@@ -195,7 +195,7 @@ class SwapWatch:
         self._touched = set()
 
 
-def _stack(befores: list[Side], rows: list[int]) -> Side:
+def stack_rows(befores: list[Side], rows: list[int]) -> Side:
     """Row ``rows[k]`` of ``befores[k]`` for every ``k``, as one :class:`Side`."""
     picks = list(zip(befores, rows, strict=True))
 
