@@ -84,7 +84,7 @@ def test_a_track_that_took_someone_else_after_a_gap_is_split_and_its_identity_po
     the newcomer gets a new track and identity, the leaver's identity waits in the pool."""
     tracker, ids, stable, leaver = _newcomer_where_one_left(colour=13)
     assert len(ids) == 2 and len(stable) == 2
-    assert tracker.counters["tracks_split"] == 1
+    assert tracker.counters["tracks_split"] == tracker.identity.counters["handed_over"] == 1
     assert leaver in {e.stable for e in tracker.identity.pool}
 
 

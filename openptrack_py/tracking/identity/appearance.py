@@ -391,7 +391,9 @@ class AppearanceIdentity:
         if not self.split:
             return np.zeros(0, dtype=np.int64)
         rows = np.flatnonzero(np.isin(table.ids, list(self.split)))
-        self.split = {i: s for i, s in self.split.items() if i in set(table.ids[rows].tolist())}
+        alive = set(table.ids[rows].tolist())
+        self.split = {i: s for i, s in self.split.items() if i in alive}
+        self.counters["handed_over"] += len(rows)
         return rows
 
     def ended(
