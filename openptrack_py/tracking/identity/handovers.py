@@ -111,9 +111,13 @@ class GapWatch:
 
         Decided and expired watches, and those of tracks no longer ``alive``, are forgotten.
         """
+        if len(self.last) > 2 * len(alive):  # ended tracks' ids never come back
+            kept = set(alive.tolist())
+            self.last = {i: s for i, s in self.last.items() if i in kept}
+        out: dict[int, float] = {}
+        if not self.watches:
+            return out
         live = set(alive.tolist())
-        self.last = {i: s for i, s in self.last.items() if i in live}
-        out = {}
         for tid, w in list(self.watches.items()):
             mean = w.evidence / w.count if w.count >= self.min_observations else 0.0
             if mean < -self.margin and tid in live:
