@@ -386,6 +386,26 @@ def test_a_stranger_does_not_take_a_pooled_identity() -> None:
     assert back[0].stable_id == back[0].id
 
 
+def test_a_new_track_begun_before_the_old_one_was_given_up_takes_back_its_identity() -> None:
+    """The person in colour 4 is next seen 2.5 m from where their track expects them: a
+    new track starts while the old one still waits for them. When the old one is given
+    up, the new one is among the people alive with it, the most alike of them; it is not
+    its own impostor, and takes the identity back."""
+    rng = np.random.default_rng(12)
+    tracker = identity_tracker()
+    out, t = _warm_up(tracker, rng)
+    before = {round(tr.y): tr.stable_id for tr in out.tracks}
+    for j in range(int(10.0 / FRAME)):
+        tt = t + j * FRAME
+        dets = [walker(i, tt, look(3 * i + 1, rng)) for i in (0, 2)]
+        dets.append(person(4.5 + 0.01 * j, 4.5, look(4, rng), u=700))
+        out = tracker.step(batch(tt, tuple(dets), 2000 + j))
+    moved = [tr for tr in out.tracks if tr.x > 4.0]
+    assert len(moved) == 1 and moved[0].id != before[4]  # a new track...
+    assert moved[0].stable_id == before[4]  # ...with the old identity
+    assert tracker.identity.counters["reidentified"] == 1
+
+
 def test_a_pooled_identity_is_only_taken_where_its_person_could_have_walked() -> None:
     rng = np.random.default_rng(7)
     tracker = identity_tracker(reid_max_speed_mps=0.05, reid_margin_m=0.5)

@@ -430,7 +430,7 @@ class AppearanceIdentity:
                         emb=m.emb[mr].copy(), emb_w=float(m.emb_w[mr]),
                         xy=table.recent_xy[row].copy(),
                         lost_at=self.split.pop(tid, float(table.last_seen[row])),
-                        name_ev=m.name_ev[mr].copy(), impostor=self._impostor(mr),
+                        name_ev=m.name_ev[mr].copy(), **self._impostors(mr),
                         hgt=float(m.hgt[mr]), hgt_n=float(m.hgt_n[mr]), born_at=born,
                     )
                 )  # fmt: skip
@@ -813,7 +813,8 @@ class AppearanceIdentity:
         """Whether each candidate looks more like each pooled identity than others did.
 
         ``(C, P)``: the candidate's model against the pooled one beats, by
-        ``reid_margin``, the most alike anyone known to be someone else ever looked.
+        ``reid_margin``, the most alike anyone else known to be someone else ever looked
+        (a candidate is not its own impostor).
         """
         rows = self.models.rows(np.array(cands, dtype=np.int64))
         everything = np.ones(len(rows), dtype=bool)  # a candidate's colours always count
@@ -821,26 +822,36 @@ class AppearanceIdentity:
             self._models_side(rows, everything, visit=True), self._pool_side(self.pool)
         )
         pool = self.pool
-        impostor = np.array([e.impostor for e in pool])
-        return out >= impostor[None] + self.cfg.reid_margin
+        itself = np.array(cands)[:, None] == np.array([e.impostor_id for e in pool])[None]
+        impostor = np.where(
+            itself,
+            np.array([e.impostor_next for e in pool])[None],
+            np.array([e.impostor for e in pool])[None],
+        )
+        return out >= impostor + self.cfg.reid_margin
 
-    def _impostor(self, row: int) -> float:
+    def _impostors(self, row: int) -> dict[str, float | int]:
         """How alike the people alive with track ``row`` look to it (see PooledIdentity).
 
         Score normalisation against an impostor cohort, as speaker and face verification
         do: a pooled identity is only taken by a look that beats every look known to be
-        someone else's.
+        someone else's. The two most alike are kept: one of them may be the person's
+        own new track, begun before this one was given up.
         """
         m = self.models
         others = np.setdiff1d(np.flatnonzero(m.sig_n >= self.cfg.min_observations), [row])
         if not len(others):
-            return -np.inf
-        return float(
-            self._pair_llr(
-                self._models_side(np.array([row]), visit=True),
-                self._models_side(others, visit=True),
-            ).max()
-        )
+            return {}
+        llr = self._pair_llr(
+            self._models_side(np.array([row]), visit=True),
+            self._models_side(others, visit=True),
+        )[0]
+        order = np.argsort(llr)[::-1]
+        return {
+            "impostor": float(llr[order[0]]),
+            "impostor_id": int(m.ids[others[order[0]]]),
+            "impostor_next": float(llr[order[1]]) if len(order) > 1 else -np.inf,
+        }
 
     def _name(self, table: TrackTable) -> None:
         """Names to confirmed tracks one-to-one, by evidence, with hysteresis."""

@@ -232,7 +232,13 @@ class PooledIdentity:
         Its evidence for each registered name.
     impostor : float
         The highest model-to-model log-likelihood ratio between this person and anyone
-        seen alive with them (certainly someone else): how alike a stranger can look.
+        seen alive with them (someone else): how alike a stranger can look.
+    impostor_id : int
+        The track that ``impostor`` is of (-1: none).
+    impostor_next : float
+        The highest such ratio of anyone else: the impostor a track is held to when it
+        is ``impostor_id`` itself (a person's new track, started before their old one
+        was given up, is no stranger to them).
     hgt, hgt_n : float
         The lost track's height model and the heights it averages.
     born_at : float
@@ -249,6 +255,8 @@ class PooledIdentity:
     lost_at: float
     name_ev: np.ndarray
     impostor: float = -np.inf
+    impostor_id: int = -1
+    impostor_next: float = -np.inf
     hgt: float = 0.0
     hgt_n: float = 0.0
     born_at: float = -np.inf
