@@ -291,7 +291,7 @@ class AppearanceIdentity:
         seen = _looks_side(looks, cols, has_sig[useful], heights[useful], has_hgt[useful])
         self._watch_swaps(table, m.ids[mrows], seen, t)
         self.gaps.observe(m.ids[mrows], seen, lambda a, b: self._pair_llr(a, b, rowwise=True))
-        self.split.update(self.gaps.decide(t, table.ids, self._exchanging))
+        self.split.update(self.gaps.decide(t, table.ids))
         if len(mrows):
             self._gather_evidence(mrows, cols, dets, seen, t)
         self._decide(table, t)
@@ -311,18 +311,9 @@ class AppearanceIdentity:
         if len(ii):
             pairs = _pairs(table.ids[rows[ii]], table.ids[rows[jj]])
             self.swaps.meet(pairs, t, lambda ids: self._models_side(m.rows(ids)))
-            self.gaps.met(np.array(pairs).ravel(), t, lambda ids: self._models_side(m.rows(ids)))
         self.swaps.observe(ids, seen, t, lambda a, b: self._pair_llr(a, b, rowwise=True))
         for (a, b), before in self.swaps.decide(t, table.ids):
             self._exchange(a, b, before)
-
-    def _exchanging(self, tid: int) -> bool:
-        """Whether track ``tid`` and one it met both look unlike themselves.
-
-        A likely exchange of their people: the swap watch puts it right, and splitting
-        either track first would lose it.
-        """
-        return any(self.gaps.leaning(o) < 0 for o in self.swaps.partners(tid))
 
     def _exchange(self, a: int, b: int, before: Side) -> None:
         """Tracks ``a`` and ``b`` exchange identities (models, links, names, evidence).
@@ -352,7 +343,6 @@ class AppearanceIdentity:
                 table[a] = vb
             if va is not None:
                 table[b] = va
-        self.gaps.forget((a, b))
         self.counters["swapped_back"] += 1
 
     @property

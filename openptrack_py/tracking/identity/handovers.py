@@ -1,28 +1,20 @@
-"""Tracks that went on with someone else, after a gap or a meeting: split off by their looks.
+"""Tracks that came back from a gap following someone else: split off by their looks.
 
 Where a visitor walks out through a door and another comes in through it a moment
 later, the leaver's track, coasting where it lost its person, takes the newcomer's
 detections: nothing in the assignment offers the newcomer a track of their own, and the
 appearance term only ranks the pairs the gate admits. From then on the newcomer
-publishes the leaver's identity. Motion cannot tell the two apart; looks can. The same
-happens where two people meet and part (children closing up on a circle, people
-changing sides in a group) and the track goes on with the other person, whose own
-track goes on with a third, or ends, or was just begun: the exchange of two tracks
-that :mod:`.swaps` puts right is the case where both go on.
+publishes the leaver's identity. Motion cannot tell the two apart; looks can.
 
 :class:`GapWatch` remembers a track's looks when it is observed again after
-``gap_s`` without an observation, or when it comes within a body width of another
-track (the looks from before the first meeting; each meeting keeps the watch open,
-and its evidence counts from the last), and compares each later observation that has
-a cue (a clean colour, a height, an identity embedding) with them. Once it has
+``gap_s`` without an observation, and compares each later observation that has a cue
+(a clean colour, a height, an identity embedding) with them. Once it has
 ``min_observations`` and their mean log-likelihood ratio of "the same person" is below
-``-margin``, the track follows someone else since the gap or the meeting, and the
-tracker splits it (the newcomer gets a new track and identity, the old identity goes to
-the pool, where its person, coming back or on a track of their own, can take it). A
-mean above ``margin`` settles the watch; one undecided after ``window_s`` is dropped.
-Where everyone looks alike the means stay near 0 and nothing is split. The same test as
-:mod:`.swaps`, for one track and its past; while a track it met looks unlike itself
-too, the two are more likely exchanged, and the split waits for the swap watch.
+``-margin``, the track follows someone else since the gap, and the tracker splits it
+(the newcomer gets a new track and identity, the old identity goes to the pool, where
+the leaver, coming back, can take it). A mean above ``margin`` settles the watch; one
+undecided after ``window_s`` is dropped. Where everyone looks alike the means stay near
+0 and nothing is split. The same test as :mod:`.swaps`, for one track and its past.
 """
 
 from __future__ import annotations
@@ -44,8 +36,7 @@ twice the tracker's visibility timeout, a person walks about 0.6 m in it."""
 class _Gap:
     """A track's looks from before its gap (never changed in place), and the evidence since.
 
-    ``lost_at`` and ``since``: when it was last observed before the gap, and first after;
-    for a meeting, when it first met and last met.
+    ``lost_at`` and ``since``: when it was last observed before the gap, and first after.
     """
 
     before: Side
@@ -59,7 +50,7 @@ class _Gap:
 
 
 class GapWatch:
-    """Tracks observed after a gap or a meeting, watched until their looks say who they follow.
+    """Tracks observed again after a gap, watched until their looks say who they follow.
 
     Parameters
     ----------
@@ -102,29 +93,6 @@ class GapWatch:
                 self.watches[tid] = _Gap(side.take(np.array([k])), self.last[tid], t)
         self.last.update(dict.fromkeys(ids.tolist(), t))
 
-    def met(self, ids: np.ndarray, t: float, looks: Callable[[np.ndarray], Side]) -> None:
-        """Tracks ``ids`` came within a body width of another at ``t``.
-
-        Where two people meet, a track may go on with the other person (whose own
-        track goes on, or ends, or is new); its looks from before the first meeting are
-        kept, and each meeting before a decision keeps the watch open ``window_s``
-        longer and starts its evidence again (the looks of two people that close are
-        mixed).
-        """
-        start = [i for i in dict.fromkeys(ids.tolist()) if i not in self.watches]
-        if start:
-            side = looks(np.array(start, dtype=np.int64))
-            for k, tid in enumerate(start):
-                self.watches[tid] = _Gap(side.take(np.array([k])), t, t)
-        for i in ids.tolist():
-            w = self.watches[i]  # evidence counts from the last meeting on
-            w.since, w.evidence, w.count = t, 0.0, 0
-
-    def forget(self, ids: tuple[int, ...]) -> None:
-        """Tracks ``ids`` exchanged identities: their watches no longer apply."""
-        for i in ids:
-            self.watches.pop(i, None)
-
     def observe(
         self, ids: np.ndarray, seen: Side, llr: Callable[[Side, Side], np.ndarray]
     ) -> None:
@@ -138,18 +106,10 @@ class GapWatch:
             w.evidence += v
             w.count += 1
 
-    def leaning(self, tid: int) -> float:
-        """Track ``tid``'s mean log-likelihood ratio so far (0: not watched, or no cue yet)."""
-        w = self.watches.get(tid)
-        return w.evidence / w.count if w is not None and w.count else 0.0
-
-    def decide(
-        self, t: float, alive: np.ndarray, held: Callable[[int], bool] = lambda tid: False
-    ) -> dict[int, float]:
+    def decide(self, t: float, alive: np.ndarray) -> dict[int, float]:
         """Track ids found to follow someone else since their gap, with their ``lost_at``.
 
-        A track ``held`` is not split yet (its watch stays open). Decided and expired
-        watches, and those of tracks no longer ``alive``, are forgotten.
+        Decided and expired watches, and those of tracks no longer ``alive``, are forgotten.
         """
         if len(self.last) > 2 * len(alive):  # ended tracks' ids never come back
             kept = set(alive.tolist())
@@ -161,10 +121,6 @@ class GapWatch:
         for tid, w in list(self.watches.items()):
             mean = w.evidence / w.count if w.count >= self.min_observations else 0.0
             if mean < -self.margin and tid in live:
-                if held(tid):
-                    if t - w.since > self.window_s:
-                        del self.watches[tid]
-                    continue
                 out[tid] = w.lost_at
             decided = abs(mean) > self.margin
             if decided or tid not in live or t - w.since > self.window_s:

@@ -168,10 +168,6 @@ class SwapWatch:
                     self._forget(pair)
         return out
 
-    def partners(self, tid: int) -> set[int]:
-        """The tracks in an undecided pair with track ``tid``."""
-        return {a if b == tid else b for a, b in self._pairs_of.get(tid, ())}
-
     def _forget(self, pair: Pair) -> None:
         if self.watches.pop(pair, None) is None:
             return
