@@ -11,7 +11,8 @@ one thing at a time is made worse, and every tracker runs on the very same detec
 * **false positives**: 0.03-1 transient false positives per Kinect v2 frame with
   confidence up to 0.8, on top of the profile's static decoys.
 
-Trackers: ``ours`` (the default ``TrackerConfig``), ``plain`` (the same tracker with
+Trackers: ``ours`` (the default ``TrackerConfig``), ``identity`` (the same with the
+identity role on, ``identity.enabled=true``), ``plain`` (the same tracker with
 robust track management off, ``ROBUSTNESS_OFF``), ``stonesoup`` (Stone Soup configured
 as our model, :mod:`benchmarks.bench_stonesoup`; first seed only and 30 s, see
 :data:`STONESOUP_BUDGET`) and ``norfair`` (plain norfair on floor
@@ -24,6 +25,7 @@ curves ``docs/robustness_sweep.png``::
 
     python -m benchmarks.sweep --make-norfair-env     # about 40 minutes on 2 cores
     python -m benchmarks.sweep --quick                # 20 s runs, one seed, no PNG
+    python -m benchmarks.sweep --trackers ours --merge  # re-run one tracker's rows only
 
 The seeds (11 and 12) were not used while the tracker was developed.
 """
@@ -82,7 +84,8 @@ AXES: dict[str, Axis] = {
         lambda p, v: p.with_false_positives(v, 0.8),
     ),
 }
-TRACKERS = ("ours", "plain", "stonesoup", "norfair")
+TRACKERS = ("ours", "identity", "plain", "stonesoup", "norfair")
+LABELS = {"identity": "ours, identity on", "plain": "ours, robustness off"}
 STONESOUP_BUDGET = (1, 30.0)
 """Stone Soup runs on the first seed only, for 30 s: its cost grows with the number of
 tracks, which false positives multiply (minutes per run at one false positive per frame)."""
@@ -138,6 +141,8 @@ def _feed(
 ) -> HypothesisFeed:
     if tracker == "ours":
         return tracking_feed(load_tracker_config(None, overrides))
+    if tracker == "identity":
+        return tracking_feed(load_tracker_config(None, ("identity.enabled=true", *overrides)))
     if tracker == "plain":
         return tracking_feed(TrackerConfig(**ROBUSTNESS_OFF))
     if tracker == "stonesoup":
@@ -206,6 +211,17 @@ def summarise(rows: list[dict[str, object]]) -> dict[str, dict[str, list[list[fl
     return out
 
 
+def merge_runs(
+    old: list[dict[str, object]], new: list[dict[str, object]]
+) -> list[dict[str, object]]:
+    """``old`` runs of the trackers not in ``new``, then ``new``: one tracker's rows re-run.
+
+    Only runs of the same seeds and duration are merged (``main`` checks the title).
+    """
+    rerun = {r["tracker"] for r in new}
+    return [r for r in old if r["tracker"] not in rerun] + list(new)
+
+
 def table(summary: dict[str, dict[str, list[list[float]]]]) -> str:
     """A Markdown table: one row per axis point, MOTA / IDF1 per tracker."""
     trackers = sorted({t for per in summary.values() for t in per})
@@ -230,7 +246,7 @@ def plot(summary: dict[str, dict[str, list[list[float]]]], path: Path, title: st
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    styles = {"ours": "o-", "plain": "s--", "stonesoup": "^-.", "norfair": "d:"}
+    styles = {"ours": "o-", "identity": "v-", "plain": "s--", "stonesoup": "^-.", "norfair": "d:"}
     fig, axes = plt.subplots(2, len(AXES), figsize=(4.2 * len(AXES), 7), sharey="row")
     for col, (axis, per) in enumerate(summary.items()):
         for tracker, pts in per.items():
@@ -238,7 +254,8 @@ def plot(summary: dict[str, dict[str, list[list[float]]]], path: Path, title: st
                 continue
             arr = np.array(pts)
             for row, k in ((0, 1), (1, 2)):
-                axes[row, col].plot(arr[:, 0], arr[:, k], styles.get(tracker, "x-"), label=tracker)
+                label = LABELS.get(tracker, tracker)
+                axes[row, col].plot(arr[:, 0], arr[:, k], styles.get(tracker, "x-"), label=label)
         axes[1, col].set_xlabel(AXES[axis].label)
         for row in (0, 1):
             axes[row, col].grid(True, alpha=0.3)
@@ -266,13 +283,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "robustness_sweep")
     parser.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE",
-        help="a tracker setting for ours (repeatable); pair it with --out elsewhere",
+        help="a tracker setting for ours and identity (repeatable); pair it with --out elsewhere",
+    )  # fmt: skip
+    parser.add_argument(
+        "--merge", action="store_true",
+        help="keep the other trackers' runs already in --out's JSON; replace these trackers'",
     )  # fmt: skip
     args = parser.parse_args(argv)
     seeds, duration = (args.seeds[:1], 20.0) if args.quick else (args.seeds, args.duration)
     norfair = args.norfair_python
     if norfair is None and (args.make_norfair_env or (NORFAIR_ENV / "bin" / "python").exists()):
         norfair = make_norfair_env()
+    title = (
+        f"{SCENARIO}, realistic profile made worse one axis at a time; "
+        f"{duration:g} s, seeds {', '.join(map(str, seeds))}"
+    )
+    old = None
+    if args.merge and args.out.with_suffix(".json").exists():
+        old = json.loads(args.out.with_suffix(".json").read_text())
+        if old["title"] != title:
+            print(f"sweep: --merge needs the runs of {old['title']!r}", file=sys.stderr)
+            return 2
     trackers = [t for t in args.trackers if t != "norfair" or norfair]
     if "norfair" in args.trackers and not norfair:
         print("sweep: norfair left out (no --norfair-python, no .venv-norfair)", file=sys.stderr)
@@ -298,13 +329,11 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
                 flush=True,
             )
+    if old is not None:
+        rows = merge_runs(old["runs"], rows)
     summary = summarise(rows)
     print(table(summary))
     if not args.quick:
-        title = (
-            f"{SCENARIO}, realistic profile made worse one axis at a time; "
-            f"{duration:g} s, seeds {', '.join(map(str, seeds))}"
-        )
         args.out.with_suffix(".json").write_text(
             json.dumps({"title": title, "summary": summary, "runs": rows}, indent=1) + "\n"
         )
