@@ -302,7 +302,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.merge and args.out.with_suffix(".json").exists():
         old = json.loads(args.out.with_suffix(".json").read_text())
         if old["title"] != title:
-            print(f"sweep: --merge needs the runs of {old['title']!r}", file=sys.stderr)
+            print(
+                f"sweep: --merge: {args.out.with_suffix('.json')} holds runs of "
+                f"{old['title']!r}, not {title!r}: give its seeds and duration, or another --out",
+                file=sys.stderr,
+            )
             return 2
     trackers = [t for t in args.trackers if t != "norfair" or norfair]
     if "norfair" in args.trackers and not norfair:

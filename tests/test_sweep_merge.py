@@ -23,5 +23,5 @@ def test_runs_of_other_seeds_or_lengths_are_not_merged(tmp_path: Path, capsys) -
     title = "crowd, realistic profile made worse one axis at a time; 30 s, seeds 1"
     out.with_suffix(".json").write_text(json.dumps({"title": title, "summary": {}, "runs": []}))
     assert main(["--trackers", "ours", "--merge", "--out", str(out)]) == 2
-    assert "--merge needs the runs of" in capsys.readouterr().err
+    assert "30 s, seeds 1', not" in capsys.readouterr().err
     assert json.loads(out.with_suffix(".json").read_text())["title"] == title  # untouched
