@@ -85,7 +85,14 @@ AXES: dict[str, Axis] = {
     ),
 }
 TRACKERS = ("ours", "identity", "plain", "stonesoup", "norfair")
-LABELS = {"identity": "ours, identity on", "plain": "ours, robustness off"}
+LOOKS = {
+    "ours": ("o-", "ours"),
+    "identity": ("v-", "ours, identity on"),
+    "plain": ("s--", "ours, robustness off"),
+    "stonesoup": ("^-.", "stonesoup"),
+    "norfair": ("d:", "norfair"),
+}
+"""How each tracker's curve is drawn: line style and legend label."""
 STONESOUP_BUDGET = (1, 30.0)
 """Stone Soup runs on the first seed only, for 30 s: its cost grows with the number of
 tracks, which false positives multiply (minutes per run at one false positive per frame)."""
@@ -246,7 +253,6 @@ def plot(summary: dict[str, dict[str, list[list[float]]]], path: Path, title: st
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    styles = {"ours": "o-", "identity": "v-", "plain": "s--", "stonesoup": "^-.", "norfair": "d:"}
     fig, axes = plt.subplots(2, len(AXES), figsize=(4.2 * len(AXES), 7), sharey="row")
     for col, (axis, per) in enumerate(summary.items()):
         for tracker, pts in per.items():
@@ -254,8 +260,8 @@ def plot(summary: dict[str, dict[str, list[list[float]]]], path: Path, title: st
                 continue
             arr = np.array(pts)
             for row, k in ((0, 1), (1, 2)):
-                label = LABELS.get(tracker, tracker)
-                axes[row, col].plot(arr[:, 0], arr[:, k], styles.get(tracker, "x-"), label=label)
+                style, label = LOOKS.get(tracker, ("x-", tracker))
+                axes[row, col].plot(arr[:, 0], arr[:, k], style, label=label)
         axes[1, col].set_xlabel(AXES[axis].label)
         for row in (0, 1):
             axes[row, col].grid(True, alpha=0.3)
@@ -291,23 +297,24 @@ def main(argv: list[str] | None = None) -> int:
     )  # fmt: skip
     args = parser.parse_args(argv)
     seeds, duration = (args.seeds[:1], 20.0) if args.quick else (args.seeds, args.duration)
-    norfair = args.norfair_python
-    if norfair is None and (args.make_norfair_env or (NORFAIR_ENV / "bin" / "python").exists()):
-        norfair = make_norfair_env()
     title = (
         f"{SCENARIO}, realistic profile made worse one axis at a time; "
         f"{duration:g} s, seeds {', '.join(map(str, seeds))}"
     )
+    results = args.out.with_suffix(".json")
     old = None
-    if args.merge and args.out.with_suffix(".json").exists():
-        old = json.loads(args.out.with_suffix(".json").read_text())
+    if args.merge and results.exists():
+        old = json.loads(results.read_text())
         if old["title"] != title:
             print(
-                f"sweep: --merge: {args.out.with_suffix('.json')} holds runs of "
-                f"{old['title']!r}, not {title!r}: give its seeds and duration, or another --out",
+                f"sweep: --merge: {results} holds runs of {old['title']!r}, not "
+                f"{title!r}: give its seeds and duration, or another --out",
                 file=sys.stderr,
             )
             return 2
+    norfair = args.norfair_python
+    if norfair is None and (args.make_norfair_env or (NORFAIR_ENV / "bin" / "python").exists()):
+        norfair = make_norfair_env()
     trackers = [t for t in args.trackers if t != "norfair" or norfair]
     if "norfair" in args.trackers and not norfair:
         print("sweep: norfair left out (no --norfair-python, no .venv-norfair)", file=sys.stderr)
@@ -338,7 +345,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarise(rows)
     print(table(summary))
     if not args.quick:
-        args.out.with_suffix(".json").write_text(
+        results.write_text(
             json.dumps({"title": title, "summary": summary, "runs": rows}, indent=1) + "\n"
         )
         plot(summary, args.out.with_suffix(".png"), title)
