@@ -167,6 +167,13 @@ class TrackerConfig(StrictModel):
     merge_after_s : float
         How long they must stay so before they are merged into the older one (0
         disables merging).
+    merge_distinct_sensors : int
+        Two tracks detected apart in one sensor frame are two people, but one sensor's
+        frames are not enough where others see the place: a detector splits one person
+        into two blobs now and then, each sensor in its own view. Where this many
+        sensors have detected either track in the last 5 s, this many must each have
+        seen them apart (where fewer see the place, each of them must); 1: any one
+        sensor's frame.
     keepalive_min_support : float
         A confident detection keeps a track alive only while the track's support (before
         that detection) is at least this: a lost track whose gate has grown wide, or a
@@ -207,8 +214,8 @@ class TrackerConfig(StrictModel):
     person_gap_m : float
         Least distance between the centres of two people: a body's depth (adults' chest
         depth is 0.2-0.3 m in anthropometric surveys, children's less). Two tracks known
-        to be two people (one sensor frame detected both apart in the last 5 s, as
-        merging records; nothing is known with ``merge_after_s`` 0) are never estimated
+        to be two people (seen apart in the last 5 s, as merging records,
+        ``merge_distinct_sensors``; nothing is known with ``merge_after_s`` 0) are never estimated
         closer: their estimates are pushed apart along the line between them, each by
         its share of their uncertainty (a Kalman estimate projected onto the
         constraint). A track coasting through the blob of two people then pushes the
@@ -300,6 +307,7 @@ class TrackerConfig(StrictModel):
     merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
     merge_by_noise: bool = True
+    merge_distinct_sensors: int = Field(2, ge=1, le=16)
     support_rate: float = Field(0.1, gt=0.0, le=1.0)
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
     occlusion_aware_support: bool = False

@@ -162,9 +162,14 @@ class Merger(Protocol):
     """Finds confirmed tracks that follow one person."""
 
     def observe(
-        self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None
+        self,
+        table: TrackTable,
+        rows: np.ndarray,
+        t: float,
+        noise: np.ndarray | None = None,
+        sensor: int = 0,
     ) -> None:
-        """Tracks ``rows`` were all detected in one sensor frame at ``t``.
+        """Tracks ``rows`` were all detected in one frame of ``sensor`` (its slot) at ``t``.
 
         ``noise`` is each row's measurement covariance ``(len(rows), 2, 2)``.
         """

@@ -66,6 +66,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             cfg.merge_after_s,
             cfg.merge_max_speed_difference_mps,
             gate=float(chi2.ppf(cfg.gate_probability, 2)) if cfg.merge_by_noise else None,
+            distinct_sensors=cfg.merge_distinct_sensors,
         ),
         identity=build_identity(cfg),
         params=TrackerParams(

@@ -5,10 +5,20 @@ whose calibrations disagree at a camera boundary, a burst of outliers). Left alo
 two share that person's detections and live forever: OpenPTrack's best-known failure.
 :class:`TrackMerger` merges them, keeping the older id, when they have stayed within
 ``distance_m`` of each other for ``after_s``, moving alike and both detected lately (by
-any sensor, whether or not its detections still keep the track alive), and no
-single sensor frame has detected both of them at once in the last ``distinct_s`` (one
-sensor seeing two blobs in one frame is proof of two people: two people walking side by
-side are never merged).
+any sensor, whether or not its detections still keep the track alive), and they are not
+known to be two people.
+
+Two people are known apart by what the sensors saw in the last ``distinct_s``: a sensor
+frame that detected both of them at once (two blobs in one frame: two people walking
+side by side are never merged). But a detector also splits one person into two blobs now
+and then (an arm held out, a body seen half behind a chair: OpenPTrack's users report a
+person's second id beside them), and each sensor segments its own view, so a split is
+one sensor's artefact while a second person is there for every sensor that sees the
+place. So where ``distinct_sensors`` or more sensors have detected either track in that
+time, that many of them must each have seen the pair apart; where fewer see the place,
+each of them must. One sensor's split no longer keeps a person's second track alive
+(nor, through :func:`~openptrack_py.tracking.blobs.keep_apart`, pushes it off the
+person) where others see the person whole.
 
 How close is close depends on how noisy the detections are: each sensor's errors pull
 the track it feeds its own way, so two tracks of one person drift apart by about the
@@ -47,7 +57,8 @@ class TrackMerger:
     max_speed_difference_mps : float
         Largest difference of their velocities.
     distinct_s : float
-        A pair detected in one sensor frame is two people for this long.
+        A pair detected in one sensor frame counts as seen apart by that sensor for this
+        long.
     fresh_s : float
         Both tracks must have been detected this recently (by any sensor, whether or
         not the detection kept the track alive).
@@ -65,6 +76,9 @@ class TrackMerger:
         them as given.
     noise_rate : float
         Weight of one update in a track's average measurement variance.
+    distinct_sensors : int
+        How many sensors must have seen a pair apart, where that many have detected
+        either track in the last ``distinct_s`` (1: any one sensor's frame suffices).
     """
 
     def __init__(
@@ -78,6 +92,7 @@ class TrackMerger:
         walking_m: float = 0.3,
         gate: float | None = None,
         noise_rate: float = 0.1,
+        distinct_sensors: int = 2,
     ) -> None:
         self.distance_m = distance_m
         self.after_s = after_s
@@ -88,10 +103,12 @@ class TrackMerger:
         self.walking_m = walking_m
         self.gate = gate
         self.noise_rate = noise_rate
+        self.distinct_sensors = distinct_sensors
         self._noise_var: dict[int, float] = {}
         self._close_since: dict[tuple[int, int], float] = {}
         self._last_close: dict[tuple[int, int], float] = {}
-        self._distinct: dict[tuple[int, int], float] = {}
+        # (lower id, higher id, sensor slot) -> when that sensor last saw the pair apart
+        self._distinct: dict[tuple[int, ...], float] = {}
 
     def snapshot(self) -> tuple[dict[Any, float], ...]:
         """Pair timers and the tracks' noise (independent copies)."""
@@ -103,14 +120,27 @@ class TrackMerger:
         )
 
     def restore(self, state: tuple[dict[Any, float], ...]) -> None:
-        """Return to a snapshot (one taken before the tracks' noise was kept has none)."""
+        """Return to a snapshot.
+
+        One taken before the tracks' noise was kept has none; one taken before the
+        sensors that saw a pair apart were kept has pairs ``(a, b)``, each taken as seen
+        apart by one sensor.
+        """
         dicts = [dict(d) for d in state] + [{} for _ in range(4 - len(state))]
-        self._close_since, self._last_close, self._distinct, self._noise_var = dicts
+        self._close_since, self._last_close, distinct, self._noise_var = dicts
+        self._distinct = {(k if len(k) == 3 else (*k, -1)): s for k, s in distinct.items()}
 
     def observe(
-        self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None
+        self,
+        table: TrackTable,
+        rows: np.ndarray,
+        t: float,
+        noise: np.ndarray | None = None,
+        sensor: int = 0,
     ) -> None:
-        """Tracks ``rows`` were detected in one sensor frame: close pairs are distinct.
+        """Tracks ``rows`` were detected in one frame of ``sensor``: it saw close pairs apart.
+
+        ``sensor`` is the sensor's slot (:func:`~openptrack_py.tracking.state.sensor_slot`).
 
         ``noise`` ``(len(rows), 2, 2)`` is each row's detection's measurement covariance,
         averaged into the track's measurement variance.
@@ -128,26 +158,38 @@ class TrackMerger:
             table.x[rows, 0:2], 2.0 * self._reach(self._track_var(table.ids[rows]))
         )
         for a, b in zip(table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist(), strict=True):
-            self._distinct[(a, b) if a < b else (b, a)] = t
+            self._distinct[(a, b, sensor) if a < b else (b, a, sensor)] = t
 
     def distinct_rows(self, table: TrackTable, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Row pairs ``(a, b)`` of tracks known to be two people at ``t``.
-
-        Known: detected apart in one sensor frame within the last ``distinct_s``.
-        """
+        """Row pairs ``(a, b)`` of tracks known to be two people at ``t``."""
         empty = np.zeros(0, dtype=np.intp)
         if not self._distinct:
             return empty, empty
         row_of = {int(i): r for r, i in enumerate(table.ids.tolist())}
-        pairs = [
-            (row_of[a], row_of[b])
-            for (a, b), s in self._distinct.items()
-            if t - s < self.distinct_s and a in row_of and b in row_of
-        ]
+        pairs = [(row_of[a], row_of[b]) for a, b in self._known_apart(table, t, row_of)]
         if not pairs:
             return empty, empty
         out = np.array(pairs, dtype=np.intp)
         return out[:, 0], out[:, 1]
+
+    def _known_apart(
+        self, table: TrackTable, t: float, row_of: dict[int, int]
+    ) -> set[tuple[int, int]]:
+        """Pairs of live ids (lower first) seen apart by enough sensors lately."""
+        self._distinct = {k: s for k, s in self._distinct.items() if t - s < self.distinct_s}
+        apart: dict[tuple[int, int], int] = {}
+        for a, b, _sensor in self._distinct:
+            if a in row_of and b in row_of:
+                apart[(a, b)] = apart.get((a, b), 0) + 1
+        if self.distinct_sensors <= 1 or not apart:
+            return set(apart)
+        pairs = list(apart)
+        ra = [row_of[a] for a, _ in pairs]
+        rb = [row_of[b] for _, b in pairs]
+        recent = t - self.distinct_s
+        seen = (table.sensor_hit_t[ra] > recent) | (table.sensor_hit_t[rb] > recent)
+        need = np.clip(seen.sum(axis=1), 1, self.distinct_sensors)
+        return {p for p, k in zip(pairs, need.tolist(), strict=True) if apart[p] >= k}
 
     def reattach(
         self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
@@ -253,11 +295,11 @@ class TrackMerger:
         for pair in apart:
             self._last_close.pop(pair, None)
             self._close_since.pop(pair, None)
-        self._distinct = {p: s for p, s in self._distinct.items() if t - s < self.distinct_s}
+        apart = self._known_apart(table, t, {int(i): r for r, i in enumerate(table.ids.tolist())})
         out: list[tuple[int, int]] = []
         used: set[int] = set()
         for pair, (ra, rb, _gap) in sorted(close.items(), key=lambda kv: kv[1][2]):
-            if pair in self._distinct:
+            if pair in apart:
                 self._close_since.pop(pair, None)
                 continue
             since = self._close_since.setdefault(pair, t)
@@ -325,7 +367,12 @@ class NoMerging:
     """Never merge tracks."""
 
     def observe(
-        self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None
+        self,
+        table: TrackTable,
+        rows: np.ndarray,
+        t: float,
+        noise: np.ndarray | None = None,
+        sensor: int = 0,
     ) -> None:
         """Nothing to remember."""
 

@@ -60,10 +60,7 @@ from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.publish import published_tracks
 from openptrack_py.tracking.replay import ReplayHistory
 from openptrack_py.tracking.sensor_model import StaticSensorModel
-from openptrack_py.tracking.state import (
-    DetectionArrays,
-    TrackTable,
-)
+from openptrack_py.tracking.state import DetectionArrays, TrackTable, sensor_slot
 from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKalmanFilter
 
 log = logging.getLogger(__name__)
@@ -382,7 +379,7 @@ class Tracker:
         self._update_support(rows, dets.sensor_id, t)
         index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
-        self.merger.observe(tb, own_rows, t, r[own_rows, own_cols, 0:2, 0:2])
+        self.merger.observe(tb, own_rows, t, r[own_rows, own_cols, 0:2, 0:2], sensor_slot(index))
         certain = None
         if self.identity.needs_looks:
             # pairs motion alone made certain: each the only one in the other's gate

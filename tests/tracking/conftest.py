@@ -143,7 +143,12 @@ class NeverMerge:
     """No two tracks are ever one person."""
 
     def observe(
-        self, table: TrackTable, rows: np.ndarray, t: float, noise: np.ndarray | None = None
+        self,
+        table: TrackTable,
+        rows: np.ndarray,
+        t: float,
+        noise: np.ndarray | None = None,
+        sensor: int = 0,
     ) -> None:
         pass
 

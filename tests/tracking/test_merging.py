@@ -73,6 +73,68 @@ def test_tracks_seen_in_one_frame_are_known_apart_for_distinct_s() -> None:
     assert [r.tolist() for r in merger.distinct_rows(table, 10.1)] == [[], []]
 
 
+def test_where_several_sensors_see_a_pair_one_sensors_frames_do_not_prove_two_people() -> None:
+    # three sensors detect both tracks; only sensor 2 ever saw them apart (a split blob)
+    table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
+    table.sensor_hit_t[:, 0:3] = 1e9
+    merger = TrackMerger(distance_m=0.35, after_s=0.5)
+    merged = []
+    for t in np.arange(0.0, 1.0, 0.1):
+        merger.observe(table, np.array([0, 1]), t, sensor=2)
+        merged += merger.merge(table, t)
+        assert [r.tolist() for r in merger.distinct_rows(table, t)] == [[], []]
+    assert merged == [(0, 1)]
+    # a second sensor seeing them apart makes them two people
+    merger = TrackMerger(distance_m=0.35, after_s=0.5)
+    for t in np.arange(0.0, 2.0, 0.1):
+        merger.observe(table, np.array([0, 1]), t, sensor=2)
+        merger.observe(table, np.array([0, 1]), t, sensor=1)
+        assert merger.merge(table, t) == []
+        assert [r.tolist() for r in merger.distinct_rows(table, t)] == [[0], [1]]
+    # with distinct_sensors 1, any one sensor's frame is enough (the rule before)
+    merger = TrackMerger(distance_m=0.35, after_s=0.5, distinct_sensors=1)
+    for t in np.arange(0.0, 2.0, 0.1):
+        merger.observe(table, np.array([0, 1]), t, sensor=2)
+        assert merger.merge(table, t) == []
+    # a sensor that has not detected either track for distinct_s does not count
+    table.sensor_hit_t[:, 0:2] = -10.0
+    merger = TrackMerger(distance_m=0.35, after_s=0.5, distinct_s=5.0)
+    for t in np.arange(0.0, 2.0, 0.1):
+        merger.observe(table, np.array([0, 1]), t, sensor=2)
+        assert merger.merge(table, t) == []
+
+
+def test_a_second_track_kept_by_one_sensors_split_blob_is_merged() -> None:
+    """Sensors a and b feed a track each on one person (b's calibration is off), and
+    sensor c splits the person into two blobs for a second, one at each track."""
+
+    def confirmed_ids(distinct_sensors: int) -> list[list[int]]:
+        config = TrackerConfig(
+            estimate_bias=False, adaptive_noise=False, merge_distinct_sensors=distinct_sensors
+        )
+        tracker = build_tracker(config)
+        ids = []
+        for k in range(int(12 / FRAME)):
+            t = k * FRAME
+            x = 1.0 + 0.5 * t
+            off = 0.6 if t < 4.0 else 0.3
+            tracker.step(DetectionBatch("a", k, T0 + t, "world", (_det(x, 2.0),)))
+            tracker.step(DetectionBatch("b", k, T0 + t + 0.01, "world", (_det(x + off, 2.0),)))
+            split = 3.5 <= t < 4.5
+            c = (_det(x, 2.0), _det(x + off, 2.0)) if split else (_det(x + off / 2, 2.0),)
+            out = tracker.step(DetectionBatch("c", k, T0 + t + 0.02, "world", c))
+            ids.append(sorted(tr.id for tr in out.tracks if tr.confirmed))
+        return ids
+
+    at = [int(t / FRAME) for t in (3.0, 4.6, 6.0, 9.0)]
+    ids = confirmed_ids(2)
+    assert ids[at[0]] == [1, 2]  # two tracks while a and b disagree by 0.6 m
+    assert all(ids[k] == [1] for k in range(at[1], len(ids)))  # merged as the split ends
+    # one sensor's frames as proof: two tracks for five seconds more
+    old = confirmed_ids(1)
+    assert old[at[2]] == [1, 2]
+
+
 def test_far_or_differently_moving_tracks_never_merge() -> None:
     merger = TrackMerger(distance_m=0.35, after_s=0.5)
     table = _table([(1.0, 1.0), (1.6, 1.0)], first_seen=[0.0, 0.0])
@@ -242,3 +304,13 @@ def test_a_snapshot_from_before_the_tracks_noise_was_kept_restores() -> None:
     merger = TrackMerger(gate=9.21)
     merger.restore(({(1, 2): 0.0}, {(1, 2): 0.0}, {}))  # a checkpoint of the older form
     assert merger.snapshot() == ({(1, 2): 0.0}, {(1, 2): 0.0}, {}, {})
+
+
+def test_a_snapshot_from_before_the_sensors_seeing_a_pair_apart_were_kept_restores() -> None:
+    # its pairs seen apart name no sensor: each counts as seen apart by one
+    merger = TrackMerger()
+    merger.restore(({}, {}, {(1, 2): 3.0}, {}))
+    assert merger.snapshot()[2] == {(1, 2, -1): 3.0}
+    table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
+    assert [r.tolist() for r in merger.distinct_rows(table, 4.0)] == [[0], [1]]
+    assert [r.tolist() for r in merger.distinct_rows(table, 8.5)] == [[], []]
