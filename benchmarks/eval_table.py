@@ -5,6 +5,8 @@ Writes the head of ``docs/evaluation.md`` and prints the rows as JSON lines::
     python -m benchmarks.eval_table > rows.jsonl       # about an hour on 2 cores
     python -m benchmarks.eval_table --jobs 1 --out -   # print the Markdown instead
     python -m benchmarks.eval_table --rows rows.jsonl  # the document from saved rows
+    python -m benchmarks.eval_table --rows rows.jsonl --blocks robust ideal > new.jsonl
+                                                       # re-run two blocks, keep the third
 
 Three blocks, each row the same as ``openptrack eval --scenario NAME --seed N
 --profile P [--set ...]``:
@@ -56,6 +58,12 @@ BEFORE_IDEAL = {
 """Mean MOTA and IDF1 on ``ideal``, seeds 0-2, before robust track management."""
 
 Job = tuple[str, str, int, str]  # block, scenario, seed, profile
+BLOCKS = {
+    "robust": ("realistic", REALISTIC_SEEDS),
+    "off": ("realistic", REALISTIC_SEEDS),
+    "ideal": ("ideal", IDEAL_SEEDS),
+}
+"""Each block's noise profile and seeds."""
 
 
 def run(job: Job) -> dict[str, object]:
@@ -198,38 +206,62 @@ its identity switches happen there.
 """
 
 
+def plan(
+    blocks: list[str] | None, earlier: list[dict[str, object]] | None
+) -> tuple[list[Job], list[dict[str, object]]]:
+    """The runs to make, longest first, and the earlier rows to keep.
+
+    Parameters
+    ----------
+    blocks : list of str or None
+        The blocks to run; ``None`` runs every block, unless ``earlier`` is given.
+    earlier : list of dict or None
+        Rows of an earlier run: those of the blocks not run are kept.
+    """
+    chosen = blocks if blocks is not None else ([] if earlier is not None else list(BLOCKS))
+    jobs: list[Job] = [
+        (block, name, seed, profile)
+        for block, (profile, seeds) in BLOCKS.items()
+        if block in chosen
+        for name in EVALUATED
+        for seed in seeds
+    ]
+    jobs.sort(key=lambda j: j[1] != "stress")  # longest first, so the pool stays busy
+    kept = [r for r in earlier or [] if r["block"] not in chosen]
+    return jobs, kept
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--jobs", type=int, default=2)
-    parser.add_argument("--rows", type=Path, help="JSON lines of an earlier run: no new runs")
+    parser.add_argument(
+        "--rows",
+        type=Path,
+        help="JSON lines of an earlier run: no new runs, unless --blocks names some",
+    )
+    parser.add_argument(
+        "--blocks",
+        nargs="+",
+        choices=BLOCKS,
+        help="run only these blocks (with --rows, the others' rows come from that file)",
+    )
     parser.add_argument(
         "--out", default=str(Path(__file__).resolve().parent.parent / "docs" / "evaluation.md")
     )
     args = parser.parse_args()
-    jobs: list[Job] = [
-        (block, name, seed, profile)
-        for block, profile, seeds in (
-            ("robust", "realistic", REALISTIC_SEEDS),
-            ("off", "realistic", REALISTIC_SEEDS),
-            ("ideal", "ideal", IDEAL_SEEDS),
-        )
-        for name in EVALUATED
-        for seed in seeds
-    ]
-    # longest first, so the pool stays busy
-    jobs.sort(key=lambda j: j[1] != "stress")
-    rows = []
+    earlier = None
     if args.rows is not None:
-        for line in args.rows.read_text().splitlines():
-            if line.startswith("{"):
-                rows.append(json.loads(line))
-    else:
+        earlier = [json.loads(x) for x in args.rows.read_text().splitlines() if x.startswith("{")]
+    jobs, rows = plan(args.blocks, earlier)
+    if jobs:
+        for row in rows:  # the rows printed are the whole set again
+            print(json.dumps(row), flush=True)
         with ProcessPoolExecutor(args.jobs) as pool:
             for i, row in enumerate(pool.map(run, jobs), 1):
                 rows.append(row)
                 print(json.dumps(row), flush=True)
                 print(f"eval_table: {i}/{len(jobs)}", file=sys.stderr, flush=True)
-    order = {"robust": 0, "off": 1, "ideal": 2}
+    order = {block: i for i, block in enumerate(BLOCKS)}
     rows = [r for r in rows if r["scenario"] in EVALUATED]
     rows.sort(
         key=lambda r: (order[str(r["block"])], EVALUATED.index(str(r["scenario"])), r["seed"])
