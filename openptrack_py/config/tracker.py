@@ -172,8 +172,8 @@ class TrackerConfig(StrictModel):
         frames are not enough where others see the place: a detector splits one person
         into two blobs now and then, each sensor in its own view. Where this many
         sensors have detected either track in the last 5 s, this many must each have
-        seen them apart (where fewer see the place, each of them must); 1: any one
-        sensor's frame.
+        seen them apart (where fewer have, each of them must); 1: any one sensor's
+        frame. Nothing is recorded with ``merge_after_s`` 0.
     keepalive_min_support : float
         A confident detection keeps a track alive only while the track's support (before
         that detection) is at least this: a lost track whose gate has grown wide, or a

@@ -10,15 +10,18 @@ known to be two people.
 
 Two people are known apart by what the sensors saw in the last ``distinct_s``: a sensor
 frame that detected both of them at once (two blobs in one frame: two people walking
-side by side are never merged). But a detector also splits one person into two blobs now
+side by side are not merged). But a detector also splits one person into two blobs now
 and then (an arm held out, a body seen half behind a chair: OpenPTrack's users report a
 person's second id beside them), and each sensor segments its own view, so a split is
 one sensor's artefact while a second person is there for every sensor that sees the
 place. So where ``distinct_sensors`` or more sensors have detected either track in that
-time, that many of them must each have seen the pair apart; where fewer see the place,
-each of them must. One sensor's split no longer keeps a person's second track alive
+time (those that see the place, as far as the tracker knows), that many of them must
+each have seen the pair apart; where fewer have, each of them must (one alone: its
+word suffices). One sensor's split no longer keeps a person's second track alive
 (nor, through :func:`~openptrack_py.tracking.blobs.keep_apart`, pushes it off the
-person) where others see the person whole.
+person) where others see the person whole. The price: two people close together whom
+one sensor sees apart while the others see only one of them (the other hidden behind)
+may be merged.
 
 How close is close depends on how noisy the detections are: each sensor's errors pull
 the track it feeds its own way, so two tracks of one person drift apart by about the
@@ -78,7 +81,9 @@ class TrackMerger:
         Weight of one update in a track's average measurement variance.
     distinct_sensors : int
         How many sensors must have seen a pair apart, where that many have detected
-        either track in the last ``distinct_s`` (1: any one sensor's frame suffices).
+        either track in the last ``distinct_s``; where fewer have, all of them must
+        (1: any one sensor's frame suffices). Sensors are counted by their slot in
+        ``TrackTable.sensor_hit_t`` (the 16th and later share one).
     """
 
     def __init__(
@@ -107,8 +112,9 @@ class TrackMerger:
         self._noise_var: dict[int, float] = {}
         self._close_since: dict[tuple[int, int], float] = {}
         self._last_close: dict[tuple[int, int], float] = {}
-        # (lower id, higher id, sensor slot) -> when that sensor last saw the pair apart
-        self._distinct: dict[tuple[int, ...], float] = {}
+        # (lower id, higher id) -> {sensor slot: when it last saw them apart}; the inner
+        # dicts are replaced, never changed, so a snapshot may share them
+        self._distinct: dict[tuple[int, int], dict[int, float]] = {}
 
     def snapshot(self) -> tuple[dict[Any, float], ...]:
         """Pair timers and the tracks' noise (independent copies)."""
@@ -128,7 +134,7 @@ class TrackMerger:
         """
         dicts = [dict(d) for d in state] + [{} for _ in range(4 - len(state))]
         self._close_since, self._last_close, distinct, self._noise_var = dicts
-        self._distinct = {(k if len(k) == 3 else (*k, -1)): s for k, s in distinct.items()}
+        self._distinct = {p: s if isinstance(s, dict) else {-1: s} for p, s in distinct.items()}
 
     def observe(
         self,
@@ -158,38 +164,32 @@ class TrackMerger:
             table.x[rows, 0:2], 2.0 * self._reach(self._track_var(table.ids[rows]))
         )
         for a, b in zip(table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist(), strict=True):
-            self._distinct[(a, b, sensor) if a < b else (b, a, sensor)] = t
+            pair = (a, b) if a < b else (b, a)
+            self._distinct[pair] = {**self._distinct.get(pair, {}), sensor: t}
 
     def distinct_rows(self, table: TrackTable, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Row pairs ``(a, b)`` of tracks known to be two people at ``t``."""
-        empty = np.zeros(0, dtype=np.intp)
-        if not self._distinct:
-            return empty, empty
         row_of = {int(i): r for r, i in enumerate(table.ids.tolist())}
-        pairs = [(row_of[a], row_of[b]) for a, b in self._known_apart(table, t, row_of)]
-        if not pairs:
-            return empty, empty
-        out = np.array(pairs, dtype=np.intp)
+        pairs = [(row_of[a], row_of[b]) for a, b in self._distinct if a in row_of and b in row_of]
+        out = np.array(pairs, dtype=np.intp).reshape(-1, 2)
+        out = out[self._known_apart(table, t, out)]
         return out[:, 0], out[:, 1]
 
-    def _known_apart(
-        self, table: TrackTable, t: float, row_of: dict[int, int]
-    ) -> set[tuple[int, int]]:
-        """Pairs of live ids (lower first) seen apart by enough sensors lately."""
-        self._distinct = {k: s for k, s in self._distinct.items() if t - s < self.distinct_s}
-        apart: dict[tuple[int, int], int] = {}
-        for a, b, _sensor in self._distinct:
-            if a in row_of and b in row_of:
-                apart[(a, b)] = apart.get((a, b), 0) + 1
-        if self.distinct_sensors <= 1 or not apart:
-            return set(apart)
-        pairs = list(apart)
-        ra = [row_of[a] for a, _ in pairs]
-        rb = [row_of[b] for _, b in pairs]
+    def _known_apart(self, table: TrackTable, t: float, rows: np.ndarray) -> np.ndarray:
+        """Mask of row pairs ``rows (n, 2)`` seen apart by enough sensors lately."""
         recent = t - self.distinct_s
-        seen = (table.sensor_hit_t[ra] > recent) | (table.sensor_hit_t[rb] > recent)
-        need = np.clip(seen.sum(axis=1), 1, self.distinct_sensors)
-        return {p for p, k in zip(pairs, need.tolist(), strict=True) if apart[p] >= k}
+        seen_apart = [
+            self._distinct.get((a, b), {}) for a, b in np.sort(table.ids[rows], axis=1).tolist()
+        ]
+        apart = np.array(
+            [sum(t - s < self.distinct_s for s in seen.values()) for seen in seen_apart], dtype=int
+        )
+        need = np.ones(len(rows), dtype=int)
+        if self.distinct_sensors > 1 and len(rows):
+            hit = table.sensor_hit_t
+            seen = (hit[rows[:, 0]] > recent) | (hit[rows[:, 1]] > recent)
+            need = np.clip(seen.sum(axis=1), 1, self.distinct_sensors)
+        return apart >= need
 
     def reattach(
         self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
@@ -295,11 +295,15 @@ class TrackMerger:
         for pair in apart:
             self._last_close.pop(pair, None)
             self._close_since.pop(pair, None)
-        apart = self._known_apart(table, t, {int(i): r for r, i in enumerate(table.ids.tolist())})
+        self._distinct = {
+            p: s for p, s in self._distinct.items() if t - max(s.values()) < self.distinct_s
+        }
+        rows_of = np.array([v[0:2] for v in close.values()], dtype=np.intp).reshape(-1, 2)
+        known = dict(zip(close, self._known_apart(table, t, rows_of).tolist(), strict=True))
         out: list[tuple[int, int]] = []
         used: set[int] = set()
         for pair, (ra, rb, _gap) in sorted(close.items(), key=lambda kv: kv[1][2]):
-            if pair in apart:
+            if known[pair]:
                 self._close_since.pop(pair, None)
                 continue
             since = self._close_since.setdefault(pair, t)

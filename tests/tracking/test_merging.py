@@ -310,7 +310,7 @@ def test_a_snapshot_from_before_the_sensors_seeing_a_pair_apart_were_kept_restor
     # its pairs seen apart name no sensor: each counts as seen apart by one
     merger = TrackMerger()
     merger.restore(({}, {}, {(1, 2): 3.0}, {}))
-    assert merger.snapshot()[2] == {(1, 2, -1): 3.0}
+    assert merger.snapshot()[2] == {(1, 2): {-1: 3.0}}
     table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
     assert [r.tolist() for r in merger.distinct_rows(table, 4.0)] == [[0], [1]]
     assert [r.tolist() for r in merger.distinct_rows(table, 8.5)] == [[], []]
