@@ -186,7 +186,7 @@ class Tracker:
         return self.output(batch.stamp, source)
 
     def adopt_state(self, other: Tracker) -> None:
-        """Take over ``other``'s tracks, clock and id counter (after a reconfiguration).
+        """Take over ``other``'s tracks, sensor order, clock and ids (after a reconfiguration).
 
         Roles keep their state across a reconfiguration when both trackers have a
         stateful role of the same kind in the same place.
@@ -198,6 +198,7 @@ class Tracker:
         self.seq = other.seq
         self.frame_id = other.frame_id
         self.counters = other.counters
+        self._sensor_index = dict(other._sensor_index)  # the table's sensor columns
         for mine, theirs in zip(self.roles, other.roles, strict=True):
             if isinstance(mine, Stateful) and type(mine) is type(theirs):
                 mine.restore(theirs.snapshot())  # type: ignore[attr-defined]

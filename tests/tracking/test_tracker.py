@@ -110,3 +110,18 @@ def test_gate_widens_with_time_unseen() -> None:
         probe.step(make_batch(probe.time, [det(centre[0] + distance, centre[1])], seq=70))
         assert int(probe.table.hits[0]) == hits
         assert probe.counters["tracks_started"] == started + starts
+
+
+def test_a_reconfigured_tracker_keeps_each_sensors_column() -> None:
+    # the track table's per-sensor columns follow the old tracker's order of sensors
+    # ("b" first); the new one keeps it, whatever order sensors come in after the change
+    old = build_tracker(TrackerConfig())
+    for k in range(30):
+        for i, sensor in enumerate(("b", "a")):
+            old.step(make_batch(k * FRAME + 0.01 * i, [det(1.0, 2.0)], sensor=sensor, seq=k))
+    new = build_tracker(TrackerConfig())
+    new.adopt_state(old)
+    before = new.table.sensor_hit_t.copy()
+    new.step(make_batch(30 * FRAME, [det(1.0, 2.0)], sensor="a", seq=30))
+    changed = np.flatnonzero((new.table.sensor_hit_t != before).any(axis=0))
+    assert changed.tolist() == [1]
