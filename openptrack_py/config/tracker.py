@@ -171,9 +171,11 @@ class TrackerConfig(StrictModel):
         Two tracks detected apart in one sensor frame are two people, but one sensor's
         frames are not enough where others see the place: a detector splits one person
         into two blobs now and then, each sensor in its own view. Where this many
-        sensors have detected either track in the last 5 s, this many must each have
-        seen them apart (where fewer have, each of them must); 1: any one sensor's
-        frame. Nothing is recorded with ``merge_after_s`` 0.
+        sensors have detected both tracks in the last second, this many must each have
+        seen them apart in the last 5 s (where fewer have, each of them must); 1 (the
+        default): any one sensor's frame. 2 removed most duplicates on the development
+        scenes but lost identities in dense ones (docs/evaluation.md). Nothing is
+        recorded with ``merge_after_s`` 0.
     keepalive_min_support : float
         A confident detection keeps a track alive only while the track's support (before
         that detection) is at least this: a lost track whose gate has grown wide, or a
@@ -307,7 +309,7 @@ class TrackerConfig(StrictModel):
     merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
     merge_by_noise: bool = True
-    merge_distinct_sensors: int = Field(2, ge=1, le=16)
+    merge_distinct_sensors: int = Field(1, ge=1, le=16)
     support_rate: float = Field(0.1, gt=0.0, le=1.0)
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
     occlusion_aware_support: bool = False

@@ -14,14 +14,15 @@ side by side are not merged). But a detector also splits one person into two blo
 and then (an arm held out, a body seen half behind a chair: OpenPTrack's users report a
 person's second id beside them), and each sensor segments its own view, so a split is
 one sensor's artefact while a second person is there for every sensor that sees the
-place. So where ``distinct_sensors`` or more sensors have detected either track in that
-time (those that see the place, as far as the tracker knows), that many of them must
-each have seen the pair apart; where fewer have, each of them must (one alone: its
-word suffices). One sensor's split no longer keeps a person's second track alive
-(nor, through :func:`~openptrack_py.tracking.blobs.keep_apart`, pushes it off the
-person) where others see the person whole. The price: two people close together whom
-one sensor sees apart while the others see only one of them (the other hidden behind)
-may be merged.
+place. So, with ``distinct_sensors`` 2, where two or more sensors have detected both
+tracks in the last ``sees_both_s`` (they could have seen them apart), two of them must
+each have seen the pair apart; where fewer have, each of them must (one alone: its word
+suffices). One sensor's split then no longer keeps a person's second track alive (nor,
+through :func:`~openptrack_py.tracking.blobs.keep_apart`, pushes it off the person)
+where others see the person whole. The price: two people close together whom one
+sensor sees apart while the others see them as one blob may be merged, and in a dense
+crowd that costs more identities than the splits do; so the default, 1, takes any one
+sensor's frame as proof.
 
 How close is close depends on how noisy the detections are: each sensor's errors pull
 the track it feeds its own way, so two tracks of one person drift apart by about the
@@ -81,9 +82,11 @@ class TrackMerger:
         Weight of one update in a track's average measurement variance.
     distinct_sensors : int
         How many sensors must have seen a pair apart, where that many have detected
-        either track in the last ``distinct_s``; where fewer have, all of them must
+        both tracks in the last ``sees_both_s``; where fewer have, all of them must
         (1: any one sensor's frame suffices). Sensors are counted by their slot in
         ``TrackTable.sensor_hit_t`` (the 16th and later share one).
+    sees_both_s : float
+        A sensor that detected both tracks this recently could have seen them apart.
     """
 
     def __init__(
@@ -97,7 +100,8 @@ class TrackMerger:
         walking_m: float = 0.3,
         gate: float | None = None,
         noise_rate: float = 0.1,
-        distinct_sensors: int = 2,
+        distinct_sensors: int = 1,
+        sees_both_s: float = 1.0,
     ) -> None:
         self.distance_m = distance_m
         self.after_s = after_s
@@ -109,6 +113,7 @@ class TrackMerger:
         self.gate = gate
         self.noise_rate = noise_rate
         self.distinct_sensors = distinct_sensors
+        self.sees_both_s = sees_both_s
         self._noise_var: dict[int, float] = {}
         self._close_since: dict[tuple[int, int], float] = {}
         self._last_close: dict[tuple[int, int], float] = {}
@@ -177,7 +182,6 @@ class TrackMerger:
 
     def _known_apart(self, table: TrackTable, t: float, rows: np.ndarray) -> np.ndarray:
         """Mask of row pairs ``rows (n, 2)`` seen apart by enough sensors lately."""
-        recent = t - self.distinct_s
         seen_apart = [
             self._distinct.get((a, b), {}) for a, b in np.sort(table.ids[rows], axis=1).tolist()
         ]
@@ -187,7 +191,8 @@ class TrackMerger:
         need = np.ones(len(rows), dtype=int)
         if self.distinct_sensors > 1 and len(rows):
             hit = table.sensor_hit_t
-            seen = (hit[rows[:, 0]] > recent) | (hit[rows[:, 1]] > recent)
+            lately = t - self.sees_both_s
+            seen = (hit[rows[:, 0]] > lately) & (hit[rows[:, 1]] > lately)
             need = np.clip(seen.sum(axis=1), 1, self.distinct_sensors)
         return apart >= need
 
