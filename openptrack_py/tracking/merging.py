@@ -117,29 +117,34 @@ class TrackMerger:
         self._noise_var: dict[int, float] = {}
         self._close_since: dict[tuple[int, int], float] = {}
         self._last_close: dict[tuple[int, int], float] = {}
-        # (lower id, higher id) -> {sensor slot: when it last saw them apart}; the inner
-        # dicts are replaced, never changed, so a snapshot may share them
-        self._distinct: dict[tuple[int, int], dict[int, float]] = {}
+        # (lower id, higher id) -> when any sensor last saw them apart; and, only with
+        # distinct_sensors > 1, -> {sensor slot: when it did} (the inner dicts are
+        # replaced, never changed, so a snapshot may share them)
+        self._distinct: dict[tuple[int, int], float] = {}
+        self._apart_by: dict[tuple[int, int], dict[int, float]] = {}
 
-    def snapshot(self) -> tuple[dict[Any, float], ...]:
-        """Pair timers and the tracks' noise (independent copies)."""
+    def snapshot(self) -> tuple[dict[Any, Any], ...]:
+        """Pair timers, the tracks' noise and who saw pairs apart (independent copies)."""
         return (
             dict(self._close_since),
             dict(self._last_close),
             dict(self._distinct),
             dict(self._noise_var),
+            dict(self._apart_by),
         )
 
-    def restore(self, state: tuple[dict[Any, float], ...]) -> None:
+    def restore(self, state: tuple[dict[Any, Any], ...]) -> None:
         """Return to a snapshot.
 
         One taken before the tracks' noise was kept has none; one taken before the
-        sensors that saw a pair apart were kept has pairs ``(a, b)``, each taken as seen
-        apart by one sensor.
+        sensors that saw a pair apart were kept has none either (each pair then counts
+        as seen apart by one sensor).
         """
-        dicts = [dict(d) for d in state] + [{} for _ in range(4 - len(state))]
-        self._close_since, self._last_close, distinct, self._noise_var = dicts
-        self._distinct = {p: s if isinstance(s, dict) else {-1: s} for p, s in distinct.items()}
+        dicts = [dict(d) for d in state] + [{} for _ in range(5 - len(state))]
+        self._close_since, self._last_close, self._distinct, self._noise_var = dicts[:4]
+        self._apart_by = dicts[4]
+        for pair, s in self._distinct.items():
+            self._apart_by.setdefault(pair, {-1: s})
 
     def observe(
         self,
@@ -170,31 +175,39 @@ class TrackMerger:
         )
         for a, b in zip(table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist(), strict=True):
             pair = (a, b) if a < b else (b, a)
-            self._distinct[pair] = {**self._distinct.get(pair, {}), sensor: t}
+            self._distinct[pair] = t
+            if self.distinct_sensors > 1:
+                self._apart_by[pair] = {**self._apart_by.get(pair, {}), sensor: t}
 
     def distinct_rows(self, table: TrackTable, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Row pairs ``(a, b)`` of tracks known to be two people at ``t``."""
         row_of = {int(i): r for r, i in enumerate(table.ids.tolist())}
-        pairs = [(row_of[a], row_of[b]) for a, b in self._distinct if a in row_of and b in row_of]
+        pairs = [
+            (row_of[a], row_of[b])
+            for (a, b), s in self._distinct.items()
+            if t - s < self.distinct_s and a in row_of and b in row_of
+        ]
         out = np.array(pairs, dtype=np.intp).reshape(-1, 2)
-        out = out[self._known_apart(table, t, out)]
+        if self.distinct_sensors > 1:
+            out = out[self._known_apart(table, t, out)]
         return out[:, 0], out[:, 1]
 
     def _known_apart(self, table: TrackTable, t: float, rows: np.ndarray) -> np.ndarray:
         """Mask of row pairs ``rows (n, 2)`` seen apart by enough sensors lately."""
-        seen_apart = [
-            self._distinct.get((a, b), {}) for a, b in np.sort(table.ids[rows], axis=1).tolist()
-        ]
+        ids = np.sort(table.ids[rows], axis=1).tolist()
+        if self.distinct_sensors <= 1 or not len(rows):
+            return np.array([(a, b) in self._distinct for a, b in ids], dtype=bool)
         apart = np.array(
-            [sum(t - s < self.distinct_s for s in seen.values()) for seen in seen_apart], dtype=int
+            [
+                sum(t - s < self.distinct_s for s in self._apart_by.get((a, b), {}).values())
+                for a, b in ids
+            ],
+            dtype=int,
         )
-        need = np.ones(len(rows), dtype=int)
-        if self.distinct_sensors > 1 and len(rows):
-            hit = table.sensor_hit_t
-            lately = t - self.sees_both_s
-            seen = (hit[rows[:, 0]] > lately) & (hit[rows[:, 1]] > lately)
-            need = np.clip(seen.sum(axis=1), 1, self.distinct_sensors)
-        return apart >= need
+        hit = table.sensor_hit_t
+        lately = t - self.sees_both_s
+        seen = (hit[rows[:, 0]] > lately) & (hit[rows[:, 1]] > lately)
+        return apart >= np.clip(seen.sum(axis=1), 1, self.distinct_sensors)
 
     def reattach(
         self, table: TrackTable, t: float, new: np.ndarray, lost_after_s: float
@@ -300,9 +313,8 @@ class TrackMerger:
         for pair in apart:
             self._last_close.pop(pair, None)
             self._close_since.pop(pair, None)
-        self._distinct = {
-            p: s for p, s in self._distinct.items() if t - max(s.values()) < self.distinct_s
-        }
+        self._distinct = {p: s for p, s in self._distinct.items() if t - s < self.distinct_s}
+        self._apart_by = {p: s for p, s in self._apart_by.items() if p in self._distinct}
         rows_of = np.array([v[0:2] for v in close.values()], dtype=np.intp).reshape(-1, 2)
         known = dict(zip(close, self._known_apart(table, t, rows_of).tolist(), strict=True))
         out: list[tuple[int, int]] = []

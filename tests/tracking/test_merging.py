@@ -308,14 +308,15 @@ def test_two_walkers_side_by_side_with_large_noise_have_two_tracks() -> None:
 def test_a_snapshot_from_before_the_tracks_noise_was_kept_restores() -> None:
     merger = TrackMerger(gate=9.21)
     merger.restore(({(1, 2): 0.0}, {(1, 2): 0.0}, {}))  # a checkpoint of the older form
-    assert merger.snapshot() == ({(1, 2): 0.0}, {(1, 2): 0.0}, {}, {})
+    assert merger.snapshot() == ({(1, 2): 0.0}, {(1, 2): 0.0}, {}, {}, {})
 
 
 def test_a_snapshot_from_before_the_sensors_seeing_a_pair_apart_were_kept_restores() -> None:
     # its pairs seen apart name no sensor: each counts as seen apart by one
-    merger = TrackMerger()
+    merger = TrackMerger(distinct_sensors=2)
     merger.restore(({}, {}, {(1, 2): 3.0}, {}))
-    assert merger.snapshot()[2] == {(1, 2): {-1: 3.0}}
+    assert merger.snapshot()[2] == {(1, 2): 3.0}
+    assert merger.snapshot()[4] == {(1, 2): {-1: 3.0}}
     table = _table([(1.0, 1.0), (1.2, 1.0)], first_seen=[-5.0, -1.0])
     assert [r.tolist() for r in merger.distinct_rows(table, 4.0)] == [[0], [1]]
     assert [r.tolist() for r in merger.distinct_rows(table, 8.5)] == [[], []]
