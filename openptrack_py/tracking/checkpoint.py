@@ -78,6 +78,9 @@ class Checkpoint:
         Every track.
     roles : tuple
         Each stateful role's snapshot (``None`` for the others), in role order.
+    sensors : tuple of str
+        The sensors in the order of the table's per-sensor columns (none in a checkpoint
+        written before it was kept).
     """
 
     saved_at: float
@@ -89,6 +92,7 @@ class Checkpoint:
     frame_id: str
     table: TrackTable
     roles: tuple[Any, ...]
+    sensors: tuple[str, ...] = ()
 
 
 class CheckpointStore:
@@ -137,6 +141,7 @@ class CheckpointStore:
             frame_id=tracker.frame_id,
             table=snapshot.table,
             roles=snapshot.roles,
+            sensors=tuple(tracker.sensor_index),
         )
         self.path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
         fd, tmp = tempfile.mkstemp(prefix=".tracker-", dir=self.path.parent)
@@ -183,5 +188,7 @@ def resume_tracks(tracker: Any, ckpt: Checkpoint, now: float) -> int:
     table.cov[:, 2:4, 0:2] = 0.0
     table.cov[:, 2:4, 2:4] = np.eye(2) * max(float(table.cov[:, 2, 2].max()), 1.0)
     table.x[:, 2:4] = 0.0
+    if not tracker.sensor_index:  # the resumed tracks' columns keep their sensors
+        tracker.sensor_index.update({s: i for i, s in enumerate(ckpt.sensors)})
     tracker.restore_state(table, ckpt.time + gap, ckpt.roles)
     return len(table)

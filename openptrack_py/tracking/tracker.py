@@ -156,7 +156,7 @@ class Tracker:
         self.seq = 0
         self.frame_id = "world"
         self.counters: dict[str, int] = dict.fromkeys(COUNTERS, 0)
-        self._sensor_index: dict[str, int] = {}
+        self.sensor_index: dict[str, int] = {}  # sensor id -> its column in the table
         self._stateful_cache: tuple[tuple[int, ...], list[bool]] | None = None
 
     @property
@@ -198,7 +198,7 @@ class Tracker:
         self.seq = other.seq
         self.frame_id = other.frame_id
         self.counters = other.counters
-        self._sensor_index = dict(other._sensor_index)  # the table's sensor columns
+        self.sensor_index = dict(other.sensor_index)  # the table's sensor columns
         for mine, theirs in zip(self.roles, other.roles, strict=True):
             if isinstance(mine, Stateful) and type(mine) is type(theirs):
                 mine.restore(theirs.snapshot())  # type: ignore[attr-defined]
@@ -310,7 +310,7 @@ class Tracker:
         proj = self.ukf.project(tb.x, tb.cov, self.measurement.hx)
         z, r = self.measurement.pair_measurements(dets, tb, t)
         scale = self.sensors.noise_scale(dets.sensor_id, dets.distance)
-        names = list(self._sensor_index)  # by index
+        names = list(self.sensor_index)  # by index
         extra = self.sensors.cross_sensor_var(dets.sensor_id, dets.distance, tb.last_sensor, names)
         if (scale != 1.0).any() or extra is not None:
             r = r.copy()
@@ -359,7 +359,7 @@ class Tracker:
         updates = learnable_updates(
             tb, rows, cols, dets, proj.z[rows, 0:2], proj.pzz[rows, 0:2, 0:2],
             r[rows, cols, 0:2, 0:2] / scale[:, None, None], gated, t,
-            self._sensor_index.get(dets.sensor_id, -1), float(self.gater.threshold),
+            self.sensor_index.get(dets.sensor_id, -1), float(self.gater.threshold),
             self.params.multi_sensor_s,
         )  # fmt: skip
         if updates is not None:
@@ -378,7 +378,7 @@ class Tracker:
         keep_apart(tb, *self.merger.distinct_rows(tb, t), self.params.person_gap_m)
         prior_support = tb.support[rows].copy()
         self._update_support(rows, dets.sensor_id, t)
-        index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
+        index = self.sensor_index.setdefault(dets.sensor_id, len(self.sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
         self.merger.observe(tb, own_rows, t, r[own_rows, own_cols, 0:2, 0:2], sensor_slot(index))
         certain = None
@@ -432,7 +432,7 @@ class Tracker:
         # a new track is as uncertain as its sensor really is (its learned noise)
         pos_var = self.measurement.position_noise(dets.distance[new])[:, 0, 0]
         pos_var = pos_var * self.sensors.noise_scale(dets.sensor_id, dets.distance[new])
-        index = self._sensor_index.setdefault(dets.sensor_id, len(self._sensor_index))
+        index = self.sensor_index.setdefault(dets.sensor_id, len(self.sensor_index))
         first = len(self.table)
         self.table.append(**new_rows(dets, new, ids, t, pos_var, index, self.params))
         self.identity.started(self.table, np.arange(first, first + n), dets.subset(new), t)
@@ -459,7 +459,7 @@ class Tracker:
             xy, twin = self.table.x[:, 0:2], self.params.occlusion_twin_m
             expected = self.sensors.covers(sensor_id, xy)
             hidden = self.sensors.hidden(sensor_id, xy, hit_rows, twin) if twin > 0 else None
-            index = self._sensor_index.setdefault(sensor_id, len(self._sensor_index))
+            index = self.sensor_index.setdefault(sensor_id, len(self.sensor_index))
             update_support(self.table, hit_rows, expected, index, t, self.params, hidden)
 
     def _merge(self, t: float) -> None:

@@ -69,6 +69,25 @@ def test_a_recent_checkpoint_resumes_its_tracks_with_their_ids(tmp_path: Path) -
     assert out is not None and [t.id for t in out.tracks] == confirmed
 
 
+def test_resumed_tracks_keep_each_sensors_column(tmp_path: Path) -> None:
+    # before the restart sensor "b" came first; after it "a" does: the resumed tracks'
+    # per-sensor columns (support, sightings) still belong to the same sensors
+    store = CheckpointStore(tmp_path / "tracker.ckpt")
+    first = build_tracker(TrackerConfig(**STILL))
+    for k in range(30):
+        for i, sensor in enumerate(("b", "a")):
+            first.step(make_batch(T0 + k * FRAME + 0.01 * i, [det(1.0, 2.0)], sensor, k))
+    store.save(first)
+    ckpt = CheckpointStore(store.path).load()
+    assert ckpt is not None and ckpt.sensors == ("b", "a")
+    second = build_tracker(TrackerConfig(**STILL))
+    resume_tracks(second, ckpt, T0 + 1.5)
+    before = second.table.sensor_hit_t.copy()
+    second.step(make_batch(T0 + 1.5 + FRAME, [det(1.0, 2.0)], "a", 30))
+    changed = (second.table.sensor_hit_t != before).any(axis=0)
+    assert changed.nonzero()[0].tolist() == [1]
+
+
 def test_an_unreadable_checkpoint_is_ignored(tmp_path: Path) -> None:
     path = tmp_path / "tracker.ckpt"
     path.write_bytes(b"not a checkpoint")
