@@ -6,7 +6,8 @@ temporary file renamed over the old one, readable by its owner only):
 
 * the whole tracker state the late-batch replay restores (the track table, the clock,
   the id counter, and the state of every role that keeps one: learned sensor noise and
-  alignment, merging timers, identity);
+  alignment, merging timers, identity), and which sensor each of the table's per-sensor
+  columns belongs to (a restarted tracker numbers its sensors as they come);
 * an **id reservation**: ids up to ``reserved_id`` may have been given out. It is
   written before the tracker passes it (:data:`ID_BLOCK` at a time), so after a crash
   between two checkpoints a restarted tracker starts above every id it could have
