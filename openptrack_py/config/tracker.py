@@ -217,9 +217,9 @@ class TrackerConfig(StrictModel):
         Least distance between the centres of two people: a body's depth (adults' chest
         depth is 0.2-0.3 m in anthropometric surveys, children's less). Two tracks known
         to be two people (seen apart in the last 5 s, as merging records,
-        ``merge_distinct_sensors``; nothing is known with ``merge_after_s`` 0) are never estimated
-        closer: their estimates are pushed apart along the line between them, each by
-        its share of their uncertainty (a Kalman estimate projected onto the
+        ``merge_distinct_sensors``; nothing is known with ``merge_after_s`` 0) are never
+        estimated closer: their estimates are pushed apart along the line between them,
+        each by its share of their uncertainty (a Kalman estimate projected onto the
         constraint). A track coasting through the blob of two people then pushes the
         other ahead instead of passing through it and taking its place. 0: no
         constraint.

@@ -143,8 +143,8 @@ class TrackMerger:
         dicts = [dict(d) for d in state] + [{} for _ in range(5 - len(state))]
         self._close_since, self._last_close, self._distinct, self._noise_var = dicts[:4]
         self._apart_by = dicts[4]
-        for pair, s in self._distinct.items():
-            self._apart_by.setdefault(pair, {-1: s})
+        if len(state) < 5:
+            self._apart_by = {pair: {-1: s} for pair, s in self._distinct.items()}
 
     def observe(
         self,
@@ -183,24 +183,28 @@ class TrackMerger:
         """Row pairs ``(a, b)`` of tracks known to be two people at ``t``."""
         row_of = {int(i): r for r, i in enumerate(table.ids.tolist())}
         pairs = [
-            (row_of[a], row_of[b])
-            for (a, b), s in self._distinct.items()
-            if t - s < self.distinct_s and a in row_of and b in row_of
+            p
+            for p, s in self._distinct.items()
+            if t - s < self.distinct_s and p[0] in row_of and p[1] in row_of
         ]
-        out = np.array(pairs, dtype=np.intp).reshape(-1, 2)
+        out = np.array([(row_of[a], row_of[b]) for a, b in pairs], dtype=np.intp).reshape(-1, 2)
         if self.distinct_sensors > 1:
-            out = out[self._known_apart(table, t, out)]
+            out = out[self._enough_sensors(table, t, pairs, out)]
         return out[:, 0], out[:, 1]
 
-    def _known_apart(self, table: TrackTable, t: float, rows: np.ndarray) -> np.ndarray:
-        """Mask of row pairs ``rows (n, 2)`` seen apart by enough sensors lately."""
-        ids = np.sort(table.ids[rows], axis=1).tolist()
-        if self.distinct_sensors <= 1 or not len(rows):
-            return np.array([(a, b) in self._distinct for a, b in ids], dtype=bool)
+    def _enough_sensors(
+        self, table: TrackTable, t: float, pairs: list[tuple[int, int]], rows: np.ndarray
+    ) -> np.ndarray:
+        """Mask of ``pairs`` seen apart by enough of the sensors that detected both lately.
+
+        ``pairs`` are ids (lower first), ``rows (n, 2)`` their rows.
+        """
+        if not len(pairs):
+            return np.zeros(0, dtype=bool)
         apart = np.array(
             [
-                sum(t - s < self.distinct_s for s in self._apart_by.get((a, b), {}).values())
-                for a, b in ids
+                sum(t - s < self.distinct_s for s in self._apart_by.get(p, {}).values())
+                for p in pairs
             ],
             dtype=int,
         )
@@ -315,8 +319,12 @@ class TrackMerger:
             self._close_since.pop(pair, None)
         self._distinct = {p: s for p, s in self._distinct.items() if t - s < self.distinct_s}
         self._apart_by = {p: s for p, s in self._apart_by.items() if p in self._distinct}
-        rows_of = np.array([v[0:2] for v in close.values()], dtype=np.intp).reshape(-1, 2)
-        known = dict(zip(close, self._known_apart(table, t, rows_of).tolist(), strict=True))
+        if self.distinct_sensors > 1:
+            rows = np.array([v[0:2] for v in close.values()], dtype=np.intp).reshape(-1, 2)
+            enough = self._enough_sensors(table, t, list(close), rows).tolist()
+            known = dict(zip(close, enough, strict=True))
+        else:
+            known = {p: p in self._distinct for p in close}
         out: list[tuple[int, int]] = []
         used: set[int] = set()
         for pair, (ra, rb, _gap) in sorted(close.items(), key=lambda kv: kv[1][2]):
