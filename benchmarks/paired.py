@@ -122,9 +122,7 @@ def summarise(rows: list[dict[str, object]]) -> list[dict[str, object]]:
     """One summary row per scenario and metric, over the seeds both variants ran."""
     out = []
     for scenario in dict.fromkeys(str(r["scenario"]) for r in rows):
-        runs = {
-            (r["variant"], r["seed"]): r for r in rows if r["scenario"] == scenario
-        }  # fmt: skip
+        runs = {(r["variant"], r["seed"]): r for r in rows if r["scenario"] == scenario}
         seeds = sorted({s for v, s in runs if v == "base"} & {s for v, s in runs if v == "other"})
         for metric, higher in METRICS.items():
             base = [float(runs["base", s][metric]) for s in seeds]  # type: ignore[arg-type]
