@@ -5,8 +5,12 @@ Writes the head of ``docs/evaluation.md`` and prints the rows as JSON lines::
     python -m benchmarks.eval_table > rows.jsonl       # about an hour on 2 cores
     python -m benchmarks.eval_table --jobs 1 --out -   # print the Markdown instead
     python -m benchmarks.eval_table --rows rows.jsonl  # the document from saved rows
-    python -m benchmarks.eval_table --rows rows.jsonl --blocks robust ideal > new.jsonl
+    python -m benchmarks.eval_table --rows docs/evaluation_rows.jsonl --blocks robust ideal
                                                        # re-run two blocks, keep the third
+
+Beside the document goes every row at full precision (``docs/evaluation_rows.jsonl``, the
+document's name with ``_rows.jsonl``), so a re-run of some blocks keeps the others'
+figures exactly, not as re-read from the document's rounded tables.
 
 Three blocks, each row the same as ``openptrack eval --scenario NAME --seed N
 --profile P [--set ...]``:
@@ -231,7 +235,12 @@ def plan(
     return jobs, kept
 
 
-def main() -> None:
+def rows_path(document_path: Path) -> Path:
+    """Where the rows of the document at ``document_path`` are kept at full precision."""
+    return document_path.with_name(document_path.stem + "_rows.jsonl")
+
+
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument(
@@ -248,7 +257,7 @@ def main() -> None:
     parser.add_argument(
         "--out", default=str(Path(__file__).resolve().parent.parent / "docs" / "evaluation.md")
     )
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     earlier = None
     if args.rows is not None:
         earlier = [json.loads(x) for x in args.rows.read_text().splitlines() if x.startswith("{")]
@@ -275,6 +284,7 @@ def main() -> None:
         if KEPT_SECTION in old:
             text += old[old.index(KEPT_SECTION) :]
         out.write_text(text)
+        rows_path(out).write_text("".join(json.dumps(r) + "\n" for r in rows))
 
 
 if __name__ == "__main__":
