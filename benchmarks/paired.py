@@ -7,13 +7,17 @@ the differences seed by seed::
 
     python -m benchmarks.paired --scenario crowd --seeds 200-219 --duration 60 \\
         --set occlusion_aware_support=true
+    python -m benchmarks.paired --scenario crowd --seeds 240-259 --duration 60 \\
+        --point calibration=0.2 --set calibration_sigma_m=0.12 --set calibration_sigma_deg=2
 
 Each seed runs as ``openptrack eval --scenario S --seed N --profile P [--set ...]`` once
-with the base settings (``--base-set``, default none) and once with ``--set``. For every
-metric the summary gives both means, the mean of the paired differences (``--set``
-minus base) with a 95 % bootstrap interval over seeds, and how many seeds got better,
-stayed equal and got worse (for MOTA and IDF1 higher is better, for the counts lower),
-with the two-sided sign test's p-value on those. The interval and the p-value say how
+with the base settings (``--base-set``, default none) and once with ``--set``; with
+``--point AXIS=VALUE``, on the ``realistic`` profile made worse as the robustness sweep
+makes it at that point (``benchmarks/sweep.py``). For every metric the summary gives
+both means, the mean of the paired differences (``--set`` minus base) with a 95 %
+bootstrap interval over seeds, and how many seeds got better, stayed equal and got
+worse (for MOTA and IDF1 higher is better, for the counts lower), with the two-sided
+sign test's p-value on those. The interval and the p-value say how
 far the seeds drawn speak for seeds not drawn; they do not make the simulator any more
 real. Runs print as JSON lines (``--json FILE`` keeps them); progress goes to stderr.
 """
@@ -26,6 +30,7 @@ import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from scipy.stats import binomtest
@@ -34,6 +39,8 @@ from openptrack_py.errors import ConfigError
 from openptrack_py.eval.runner import format_markdown
 from openptrack_py.eval.trackers import load_tracker_config, run_eval
 from openptrack_py.sim import SCENARIO_NAMES
+from openptrack_py.sim.profiles import REALISTIC
+from openptrack_py.sim.scenarios import build_scenario
 
 METRICS = {
     "mota": True,
@@ -47,8 +54,17 @@ METRICS = {
 RESAMPLES = 10_000
 """Bootstrap resamples of the seeds."""
 
-Job = tuple[str, int, str, float | None, str, tuple[str, ...]]
-# scenario, seed, profile, duration (None: the scenario's own), variant, overrides
+
+class Job(NamedTuple):
+    """One run: a seed of a scenario with one variant's settings."""
+
+    scenario: str
+    seed: int
+    profile: str
+    duration_s: float | None  # None: the scenario's own
+    variant: str  # "base" or "other"
+    overrides: tuple[str, ...]
+    point: tuple[str, float] | None = None  # a robustness sweep axis and its value
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -110,10 +126,26 @@ def paired_summary(
 
 
 def run(job: Job) -> dict[str, object]:
-    """One seed of one scenario with one variant's settings."""
-    scenario, seed, profile, duration_s, variant, overrides = job
-    result = run_eval(scenario, seed, duration_s=duration_s, profile=profile, overrides=overrides)
-    row: dict[str, object] = {"scenario": scenario, "seed": seed, "variant": variant}
+    """One seed of one scenario with one variant's settings.
+
+    With a sweep ``point``, the ``realistic`` profile made worse along that axis of the
+    robustness sweep (:data:`benchmarks.sweep.AXES`) as the sweep does.
+    """
+    if job.point is None:
+        result = run_eval(
+            job.scenario, job.seed, duration_s=job.duration_s, profile=job.profile,
+            overrides=job.overrides,
+        )  # fmt: skip
+    else:
+        from benchmarks.sweep import AXES
+
+        axis, value = job.point
+        built = build_scenario(
+            job.scenario, seed=job.seed, profile=AXES[axis].apply(REALISTIC, value),
+            duration_s=-1.0 if job.duration_s is None else job.duration_s,
+        )  # fmt: skip
+        result = run_eval(built, overrides=job.overrides)
+    row: dict[str, object] = {"scenario": job.scenario, "seed": job.seed, "variant": job.variant}
     row.update({k: v for k, v in result.metrics.to_dict().items() if k in METRICS})
     return row
 
@@ -136,12 +168,16 @@ def _rounded(row: dict[str, object]) -> dict[str, object]:
     return {k: round(v, 4) if isinstance(v, float) else v for k, v in row.items()}
 
 
-def main(argv: list[str] | None = None) -> None:
+def _arguments(argv: list[str] | None) -> tuple[argparse.Namespace, list[Job]]:
+    """The command line, checked before any run (each error names what is wrong)."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--scenario", action="append", required=True)
     parser.add_argument("--seeds", required=True, help="e.g. 200-219 or 3,5,8")
     parser.add_argument("--profile", default="realistic")
     parser.add_argument("--duration", type=float, help="seconds (default: the scenario's own)")
+    parser.add_argument(
+        "--point", metavar="AXIS=VALUE", help="a robustness sweep point, e.g. calibration=0.2"
+    )
     for flag, dest in (("--set", "other"), ("--base-set", "base")):
         parser.add_argument(flag, dest=dest, action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--jobs", type=int, default=2, help="processes (1: this one)")
@@ -149,8 +185,11 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     try:
         seeds = parse_seeds(args.seeds)
+        point = None if args.point is None else parse_point(args.point)
     except ValueError as exc:
         parser.error(str(exc))
+    if point is not None and args.profile != "realistic":
+        parser.error("paired: a sweep --point makes the realistic profile worse: no --profile")
     if args.other == args.base:
         parser.error("paired: --set and --base-set give the same settings: nothing to compare")
     unknown = [s for s in args.scenario if s not in SCENARIO_NAMES]
@@ -162,12 +201,36 @@ def main(argv: list[str] | None = None) -> None:
         load_tracker_config(None, args.other)
     except ConfigError as exc:
         parser.error(str(exc))
-    jobs: list[Job] = [
-        (scenario, seed, args.profile, args.duration, variant, tuple(overrides))
+    jobs = [
+        Job(scenario, seed, args.profile, args.duration, variant, tuple(overrides), point)
         for scenario in args.scenario
         for seed in seeds
         for variant, overrides in (("base", args.base), ("other", args.other))
     ]
+    return args, jobs
+
+
+def parse_point(text: str) -> tuple[str, float]:
+    """``"calibration=0.2"`` as a robustness sweep axis and value.
+
+    Raises
+    ------
+    ValueError
+        Naming the allowed axes, or the value that is not a number.
+    """
+    from benchmarks.sweep import AXES
+
+    axis, _, value = text.partition("=")
+    if axis not in AXES:
+        raise ValueError(f"point: unknown axis {axis!r} (allowed: {', '.join(AXES)})")
+    try:
+        return axis, float(value)
+    except ValueError:
+        raise ValueError(f"point: {value!r} is not a number (e.g. {axis}=0.2)") from None
+
+
+def main(argv: list[str] | None = None) -> None:
+    args, jobs = _arguments(argv)
     rows = []
     with ProcessPoolExecutor(max(args.jobs, 1)) as pool:
         results = map(run, jobs) if args.jobs <= 1 else pool.map(run, jobs)

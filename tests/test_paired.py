@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from benchmarks.paired import main, paired_summary, parse_seeds, summarise
+from benchmarks.paired import Job, main, paired_summary, parse_point, parse_seeds, run, summarise
 
 
 def test_seeds_are_ranges_and_lists() -> None:
@@ -68,3 +68,21 @@ def test_the_same_settings_twice_are_refused(capsys) -> None:
     with pytest.raises(SystemExit):
         main(["--scenario", "crowd", "--seeds", "1", "--set", "a=1", "--base-set", "a=1"])
     assert "nothing to compare" in capsys.readouterr().err
+
+
+def test_a_sweep_point_is_an_axis_and_a_value() -> None:
+    assert parse_point("calibration=0.2") == ("calibration", 0.2)
+    with pytest.raises(ValueError, match="unknown axis 'wind'"):
+        parse_point("wind=2")
+    with pytest.raises(ValueError, match="'x' is not a number"):
+        parse_point("noise=x")
+
+
+def test_a_sweep_point_makes_the_detections_worse(capsys) -> None:
+    plain = run(Job("crowd", 1, "realistic", 3.0, "base", ()))
+    worse = run(Job("crowd", 1, "realistic", 3.0, "base", (), ("false_positives", 1.0)))
+    assert worse["fp"] > plain["fp"]
+    with pytest.raises(SystemExit):
+        main(["--scenario", "crowd", "--seeds", "1", "--point", "noise=2", "--profile", "ideal",
+              "--set", "merge_after_s=0"])  # fmt: skip
+    assert "no --profile" in capsys.readouterr().err
