@@ -17,9 +17,9 @@ makes it at that point (``benchmarks/sweep.py``). For every metric the summary g
 both means, the mean of the paired differences (``--set`` minus base) with a 95 %
 bootstrap interval over seeds, and how many seeds got better, stayed equal and got
 worse (for MOTA and IDF1 higher is better, for the counts lower), with the two-sided
-sign test's p-value on those. The interval and the p-value say how
-far the seeds drawn speak for seeds not drawn; they do not make the simulator any more
-real. Runs print as JSON lines (``--json FILE`` keeps them); progress goes to stderr.
+sign test's p-value on those. The interval and the p-value say how far the seeds drawn
+speak for seeds not drawn; they do not make the simulator any more real. Runs print as
+JSON lines (``--json FILE`` keeps them); progress goes to stderr.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ import json
 import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
 from pathlib import Path
 from typing import NamedTuple
 
@@ -39,8 +40,6 @@ from openptrack_py.errors import ConfigError
 from openptrack_py.eval.runner import format_markdown
 from openptrack_py.eval.trackers import load_tracker_config, run_eval
 from openptrack_py.sim import SCENARIO_NAMES
-from openptrack_py.sim.profiles import REALISTIC
-from openptrack_py.sim.scenarios import build_scenario
 
 METRICS = {
     "mota": True,
@@ -137,13 +136,10 @@ def run(job: Job) -> dict[str, object]:
             overrides=job.overrides,
         )  # fmt: skip
     else:
-        from benchmarks.sweep import AXES
+        from benchmarks.sweep import point_scenario
 
-        axis, value = job.point
-        built = build_scenario(
-            job.scenario, seed=job.seed, profile=AXES[axis].apply(REALISTIC, value),
-            duration_s=-1.0 if job.duration_s is None else job.duration_s,
-        )  # fmt: skip
+        duration_s = -1.0 if job.duration_s is None else job.duration_s  # -1: its own
+        built = point_scenario(job.scenario, job.seed, duration_s, *job.point)
         result = run_eval(built, overrides=job.overrides)
     row: dict[str, object] = {"scenario": job.scenario, "seed": job.seed, "variant": job.variant}
     row.update({k: v for k, v in result.metrics.to_dict().items() if k in METRICS})
@@ -232,8 +228,11 @@ def parse_point(text: str) -> tuple[str, float]:
 def main(argv: list[str] | None = None) -> None:
     args, jobs = _arguments(argv)
     rows = []
-    with ProcessPoolExecutor(max(args.jobs, 1)) as pool:
-        results = map(run, jobs) if args.jobs <= 1 else pool.map(run, jobs)
+    with ExitStack() as stack:
+        if args.jobs <= 1:
+            results = map(run, jobs)
+        else:
+            results = stack.enter_context(ProcessPoolExecutor(args.jobs)).map(run, jobs)
         for i, row in enumerate(results, 1):
             rows.append(row)
             print(json.dumps(row), flush=True)

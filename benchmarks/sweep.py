@@ -48,7 +48,7 @@ from openptrack_py.config import ROBUSTNESS_OFF, TrackerConfig
 from openptrack_py.eval.runner import Hypotheses, HypothesisFeed, evaluate
 from openptrack_py.eval.trackers import load_tracker_config, tracking_feed
 from openptrack_py.sim.profiles import REALISTIC, NoiseProfile
-from openptrack_py.sim.scenarios import build_scenario
+from openptrack_py.sim.scenarios import Scenario, build_scenario
 from openptrack_py.sim.simulator import SensorFrame, TruthFrame
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -161,13 +161,18 @@ def _feed(
     raise ValueError(f"sweep: unknown tracker {tracker!r}")
 
 
+def point_scenario(name: str, seed: int, duration_s: float, axis: str, value: float) -> Scenario:
+    """Scenario ``name`` on the ``realistic`` profile made worse to ``value`` along ``axis``."""
+    profile = AXES[axis].apply(REALISTIC, value)
+    return build_scenario(name, seed=seed, duration_s=duration_s, profile=profile)
+
+
 def run_point(
     job: tuple[str, float, str, int, float, str | None, tuple[str, ...]],
 ) -> dict[str, object]:
     """One tracker on one seed at one point of one axis (``ours`` with its overrides)."""
     axis, value, tracker, seed, duration_s, norfair_python, overrides = job
-    profile = AXES[axis].apply(REALISTIC, value)
-    scenario = build_scenario(SCENARIO, seed=seed, duration_s=duration_s, profile=profile)
+    scenario = point_scenario(SCENARIO, seed, duration_s, axis, value)
     feed = _feed(tracker, norfair_python, overrides)
     start = time.perf_counter()
     try:
