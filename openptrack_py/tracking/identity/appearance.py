@@ -13,18 +13,9 @@
 * **Models** learn only from clean detections: confident, and not behind another
   detection in the image (a half-hidden person's colours are the neighbour's too).
 * **Re-identification** (OpenPTrack v2's pool of lost faces, norfair's dead tracks kept
-  for re-identification): a confirmed track that ends leaves its identity in a pool for
-  ``pool_s``, with its colours over the visit (a longer memory than association's); a
-  young track gathers evidence for each pooled identity it could be (one it could have
-  walked to since), and takes one back once it is confirmed (and observed for
-  ``reid_min_s``, 0 by default) and its mean log-likelihood ratio (colours and faces
-  each averaged over the observations that carry them, the two means added) passes
-  ``reid_mean_llr`` and beats every rival by ``reid_margin``, one-to-one (Hungarian).
-  Evidence keeps coming in during the track's first ``reid_window_s``; a link it
-  contradicts is undone and the identity goes back to the pool. A person the pool
-  missed once (back under a new identity) would leave two identities in it, splitting
-  every later return; the newer replaces the older when it is pooled, unless those it
-  looked like were there at the same time (two people).
+  for re-identification): a confirmed track that ends leaves its identity in a pool and
+  a young track that clearly is one of them takes it back (:mod:`.reid`, which holds
+  those decisions; this role gives it the models and likelihoods).
 * **Exchanged identities** (identity management in multi-target tracking): two tracks
   that met and, once apart, each look like the other's identity from before they met,
   take their identities back (:mod:`.swaps`).
@@ -39,9 +30,8 @@
 All state is per track id, in arrays (:class:`~.models.TrackModels`), and is
 snapshotted for the tracker's late-batch replay and its checkpoint.
 
-This module is long because the role's three uses of one evidence (association,
-re-identification, names) share its models and likelihoods; the pool's decisions are
-the next thing to move into a module of their own.
+This module is long because the role's uses of one evidence (association, exchanged
+identities, names) share its models and likelihoods.
 """
 
 from __future__ import annotations
@@ -63,7 +53,7 @@ from openptrack_py.tracking.identity.likelihood import (
     rowwise_distance,
 )
 from openptrack_py.tracking.identity.models import PooledIdentity, Side, TrackLooks, TrackModels
-from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
+from openptrack_py.tracking.identity.reid import MIN_REID_OBSERVATIONS, Evidence, ReidPool
 from openptrack_py.tracking.identity.roster import Roster
 from openptrack_py.tracking.identity.swaps import SwapWatch
 from openptrack_py.tracking.neighbours import close_pairs, count_within
@@ -71,12 +61,6 @@ from openptrack_py.tracking.state import DetectionArrays, Looks, TrackTable
 
 NAME_EVIDENCE_BOUND = 4.0
 """A track's evidence for a name stays within this many times ``link_evidence``."""
-MIN_REID_OBSERVATIONS = 10
-"""Observations of a young track against a pooled identity before their mean counts."""
-_Evidence = tuple[float, float, float, float]
-_NO_EVIDENCE: _Evidence = (0.0, 0.0, 0.0, 0.0)
-"""A young track's evidence against a pooled identity before any observation: the sum and
-weight of its colour log-likelihood ratios, then of its face ones."""
 DISTINCT_OBSERVATIONS = 10
 """Clean signatures each of two tracks needs before they can be judged two people."""
 BLOB_GAP_S = 1.0
@@ -110,22 +94,33 @@ class AppearanceIdentity:
         self.stature = DistanceLikelihood(config.max_llr)
         self.height_bias = HeightBias()
         self.models = TrackModels()
-        self.pool: tuple[PooledIdentity, ...] = ()
-        self.links: dict[int, PooledIdentity] = {}
-        self.reid_ev: dict[int, dict[int, _Evidence]] = {}
         self.named: dict[int, int] = {}
-        self.resembled: dict[int, tuple[int, ...]] = {}
-        self.since: dict[int, float] = {}  # linked tracks: when their identity began
         self.apart: dict[tuple[int, int], float] = {}
         self.together: dict[tuple[int, int], float] = {}
-        self.returns = ReturnRate()
         self.roster = Roster()
         self.swaps = SwapWatch(config.link_margin, config.reid_window_s, MIN_REID_OBSERVATIONS)
         self.gaps = GapWatch(config.link_margin, config.reid_window_s, MIN_REID_OBSERVATIONS)
         self.split: dict[int, float] = {}  # tracks to split now: when their person was lost
         self.counters = {"reidentified": 0, "unlinked": 0, "swapped_back": 0, "handed_over": 0}
+        self.reid = ReidPool(self, self.counters)
         self.told: list[tuple[int, str]] = []  # name_track's calls, in order
         self.set_roster(roster or Roster())
+
+    # ------------------------------------------------------- re-identification
+
+    @property
+    def pool(self) -> tuple[PooledIdentity, ...]:
+        """Identities of lost people waiting to be recognised (:class:`.reid.ReidPool`)."""
+        return self.reid.pool
+
+    @pool.setter
+    def pool(self, entries: tuple[PooledIdentity, ...]) -> None:
+        self.reid.pool = entries
+
+    @property
+    def reid_ev(self) -> dict[int, dict[int, Evidence]]:
+        """Young tracks' evidence for each pooled identity, by track id and identity."""
+        return self.reid.reid_ev
 
     # ------------------------------------------------------------------ roster
 
@@ -139,7 +134,7 @@ class AppearanceIdentity:
         old = {name: k for k, name in enumerate(before)}
         mapping = np.array([old.get(name, -1) for name in self.roster.names], dtype=np.int64)
         self.models.resize_names(mapping)
-        self.pool = tuple(replace(e, name_ev=_remap(e.name_ev, mapping)) for e in self.pool)
+        self.reid.follow_roster(mapping)
         self.named = {
             tid: int(np.flatnonzero(mapping == k)[0])
             for tid, k in self.named.items()
@@ -203,10 +198,10 @@ class AppearanceIdentity:
         ti, dj = np.nonzero(allowed & (rows >= 0)[:, None])
         if len(ti):
             heights = None
-            if self._uses_heights:
+            if self.uses_heights:
                 heights = self.height_bias.correct(dets.sensor_id, dets.xy, dets.height)[dj]
             seen = _looks_side(looks, dj, heights=heights)
-            out[ti, dj] = -self._pair_llr(self._models_side(rows[ti]), seen, rowwise=True)
+            out[ti, dj] = -self.pair_llr(self.models_side(rows[ti]), seen, rowwise=True)
         return out if out.any() else None
 
     # ----------------------------------------------------------------- events
@@ -239,7 +234,7 @@ class AppearanceIdentity:
         known = table.confirmed[rows] & (
             (m.sig_n[mrows] >= self.cfg.min_observations) | (m.emb_w[mrows] > 0)
         )
-        self.gaps.seen(table.ids[rows], known, t, lambda ids: self._models_side(m.rows(ids)))
+        self.gaps.seen(table.ids[rows], known, t, lambda ids: self.models_side(m.rows(ids)))
         # two people, not one person and a spurious second blob beside them (weaker,
         # and overlapping them in the image)
         sure = looks.clean[cols] & (dets.confidence[cols] >= self.cfg.clean_min_confidence)
@@ -279,18 +274,18 @@ class AppearanceIdentity:
                 self.cfg.model_rate,
             )  # fmt: skip
         heights = dets.height[cols]
-        if self._uses_heights:
+        if self.uses_heights:
             learnable = (confirmed, certain, where, others)
             heights = self._learn_heights(table, mrows, cols, dets, clean, learnable, t)
         # what each detection says of who it is: colours and heights of clean ones,
         # identity embeddings of any
         has_sig = clean & looks.has_signature[cols]
-        has_hgt = clean & (self._uses_heights and self.stature.ready)
+        has_hgt = clean & (self.uses_heights and self.stature.ready)
         useful = has_sig | has_hgt | (looks.embedding_weight[cols] > 0)
         mrows, cols = mrows[useful], cols[useful]
         seen = _looks_side(looks, cols, has_sig[useful], heights[useful], has_hgt[useful])
         self._watch_swaps(table, m.ids[mrows], seen, t)
-        self.gaps.observe(m.ids[mrows], seen, lambda a, b: self._pair_llr(a, b, rowwise=True))
+        self.gaps.observe(m.ids[mrows], seen, lambda a, b: self.pair_llr(a, b, rowwise=True))
         self.split.update(self.gaps.decide(t, table.ids))
         if len(mrows):
             self._gather_evidence(mrows, cols, dets, seen, t)
@@ -310,8 +305,8 @@ class AppearanceIdentity:
         ii, jj = close_pairs(table.x[rows, 0:2], self.cfg.share_distance_m)
         if len(ii):
             pairs = _pairs(table.ids[rows[ii]], table.ids[rows[jj]])
-            self.swaps.meet(pairs, t, lambda ids: self._models_side(m.rows(ids)))
-        self.swaps.observe(ids, seen, t, lambda a, b: self._pair_llr(a, b, rowwise=True))
+            self.swaps.meet(pairs, t, lambda ids: self.models_side(m.rows(ids)))
+        self.swaps.observe(ids, seen, t, lambda a, b: self.pair_llr(a, b, rowwise=True))
         for (a, b), before in self.swaps.decide(t, table.ids):
             self._exchange(a, b, before)
 
@@ -323,7 +318,7 @@ class AppearanceIdentity:
         either holds a re-identification that may still be undone (undoing it gives
         the track back its own id, which after an exchange the other track holds).
         """
-        if a in self.links or b in self.links:
+        if a in self.reid.links or b in self.reid.links:
             return
         m = self.models
         ra, rb = m.rows(np.array([a, b]))
@@ -337,16 +332,21 @@ class AppearanceIdentity:
         if before.hgt is not None and before.hgt_ok is not None:
             had = before.hgt_ok[other]
             m.hgt[rows[had]] = before.hgt[other[had]]
-        for table in (self.reid_ev, self.named, self.resembled, self.since):
-            va, vb = table.pop(a, None), table.pop(b, None)
-            if vb is not None:
-                table[a] = vb
-            if va is not None:
-                table[b] = va
+        na, nb = self.named.pop(a, None), self.named.pop(b, None)
+        if nb is not None:
+            self.named[a] = nb
+        if na is not None:
+            self.named[b] = na
+        self.reid.exchange(a, b)
         self.counters["swapped_back"] += 1
 
     @property
-    def _uses_heights(self) -> bool:
+    def faces_ready(self) -> bool:
+        """Whether identity embeddings can be compared yet (their likelihood learned)."""
+        return self.face.ready
+
+    @property
+    def uses_heights(self) -> bool:
         """Whether heights are a cue (``height_weight`` > 0); if not, none is learned."""
         return self.cfg.height_weight > 0
 
@@ -408,37 +408,9 @@ class AppearanceIdentity:
         m = self.models
         ids = table.ids[rows]
         mrows = m.rows(ids)
-        pooled = list(self.pool)
-        for row, tid, mr in zip(rows.tolist(), ids.tolist(), mrows.tolist(), strict=True):
-            link = self.links.pop(tid, None)
-            evidence = self.reid_ev.pop(tid, None)
-            if evidence and link is None:  # lost before its window was over
-                self._resemble(tid, evidence)
+        for tid in ids.tolist():
             self.named.pop(tid, None)
-            resembled = self.resembled.pop(tid, ())
-            began = self.since.pop(tid, None)
-            if mr < 0:
-                continue
-            keep = reason in ("deleted", "handed over") and bool(table.confirmed[row])
-            heights = m.hgt_n[mr] if self._uses_heights else 0.0
-            keep &= max(m.sig_n[mr], heights) >= self.cfg.min_observations or m.emb_w[mr] > 0
-            if keep and self.cfg.pool_s > 0:
-                born = float(m.born[mr]) if began is None else began
-                pooled.append(
-                    PooledIdentity(
-                        stable=int(m.stable[mr]), sig=m.visit[mr].copy(), sig_n=float(m.sig_n[mr]),
-                        emb=m.emb[mr].copy(), emb_w=float(m.emb_w[mr]),
-                        xy=table.recent_xy[row].copy(),
-                        lost_at=self.split.pop(tid, float(table.last_seen[row])),
-                        name_ev=m.name_ev[mr].copy(), **self._impostors(mr),
-                        hgt=float(m.hgt[mr]), hgt_n=float(m.hgt_n[mr]), born_at=born,
-                    )
-                )  # fmt: skip
-                # one person, one pooled identity: the newest (see _resemble)
-                pooled = [e for e in pooled if e.stable not in resembled]
-            elif link is not None:
-                pooled.append(link)  # a duplicate's borrowed identity is free again
-        self.pool = tuple(pooled)
+        self.reid.ended(table, rows, mrows, reason, self.split)
         m.drop(mrows[mrows >= 0])
         gone = set(ids.tolist())
         self.apart = {p: s for p, s in self.apart.items() if p[0] not in gone and p[1] not in gone}
@@ -515,13 +487,13 @@ class AppearanceIdentity:
             looks = dets.looks
             seen = _looks_side(looks, cols)
             lone, part = who[: len(lonely)], who[len(lonely) :]
-            partner_side = self._models_side(part, settled=m.sig_n[part] >= 1)
-            alone = self._pair_llr(seen, partner_side, rowwise=True)
+            partner_side = self.models_side(part, settled=m.sig_n[part] >= 1)
+            alone = self.pair_llr(seen, partner_side, rowwise=True)
             both = Side(
                 0.5 * (m.sig[lone] + m.sig[part]), np.ones(len(lone), dtype=bool),
                 m.emb[part], np.zeros(len(part)),
             )  # fmt: skip
-            ok &= self._pair_llr(seen, both, rowwise=True) >= alone
+            ok &= self.pair_llr(seen, both, rowwise=True) >= alone
         for k in np.flatnonzero(ok).tolist():
             self.together[pairs[k]] = t
         return ok
@@ -539,7 +511,7 @@ class AppearanceIdentity:
 
     # --------------------------------------------------------------- learning
 
-    def _pair_llr(self, a: Side, b: Side, rowwise: bool = False) -> np.ndarray:
+    def pair_llr(self, a: Side, b: Side, rowwise: bool = False) -> np.ndarray:
         """Log-likelihood ratio of "same person" (all three cues).
 
         ``(len(a), len(b))`` for every pair, or ``(len(a),)`` for the pairs ``a[k]``,
@@ -569,7 +541,7 @@ class AppearanceIdentity:
             llr = self.face.llr(dist("cosine", a.emb, b.emb))
             out += cfg.embedding_weight * llr * outer(a.emb_w, b.emb_w)
         if (
-            self._uses_heights
+            self.uses_heights
             and self.stature.ready
             and a.hgt_ok is not None
             and b.hgt_ok is not None
@@ -580,7 +552,7 @@ class AppearanceIdentity:
             out += cfg.height_weight * llr * outer(a.hgt_ok, b.hgt_ok)
         return out
 
-    def _models_side(
+    def models_side(
         self, rows: np.ndarray, settled: np.ndarray | None = None, visit: bool = False
     ) -> Side:
         """Track models ``rows``; colours count where ``settled`` (default: enough seen).
@@ -592,41 +564,23 @@ class AppearanceIdentity:
             settled = m.sig_n[rows] >= self.cfg.min_observations
         sig = (m.visit if visit else m.sig)[rows]
         side = Side(sig, settled, m.emb[rows], (m.emb_w[rows] > 0).astype(float))
-        if not self._uses_heights:
+        if not self.uses_heights:
             return side
         return replace(side, hgt=m.hgt[rows], hgt_ok=m.hgt_n[rows] >= self.cfg.min_observations)
-
-    def _pool_side(self, entries: tuple[PooledIdentity, ...]) -> Side:
-        """Pooled identities."""
-        side = Side(
-            np.array([e.sig for e in entries]),
-            np.array([e.sig_n >= self.cfg.min_observations for e in entries]),
-            np.array([e.emb for e in entries]),
-            np.array([float(e.emb_w > 0) for e in entries]),
-        )
-        if not self._uses_heights:
-            return side
-        return replace(
-            side,
-            hgt=np.array([e.hgt for e in entries]),
-            hgt_ok=np.array([e.hgt_n >= self.cfg.min_observations for e in entries]),
-        )
 
     def _gather_evidence(
         self, mrows: np.ndarray, cols: np.ndarray, dets: DetectionArrays, seen: Side, t: float
     ) -> None:
-        """Each observation adds to the evidence for pooled identities and names.
+        """Each observation adds to the evidence for names and pooled identities.
 
-        ``seen``: the observations (detections ``cols`` of model rows ``mrows``), their
-        colours and heights marked where they describe their person alone, heights
-        corrected for the sensor's error.
+        ``seen`` as for :meth:`.reid.ReidPool.gather`.
         """
         m = self.models
         rho = self.cfg.evidence_per_observation
         if len(self.roster):
             sig, sig_ok = self.roster.references("signature", m.sig.shape[1])
             emb, emb_ok = self.roster.references("embedding", m.emb.shape[1])
-            llr = self._pair_llr(
+            llr = self.pair_llr(
                 seen, Side(sig, sig_ok, emb, emb_ok.astype(float), *self.roster.heights())
             )
             np.add.at(m.name_ev, mrows, rho * llr)
@@ -637,49 +591,9 @@ class AppearanceIdentity:
             ev = m.name_ev[touched]
             ev -= np.maximum(ev.max(axis=1, initial=0.0) - cap, 0.0)[:, None]
             m.name_ev[touched] = np.maximum(ev, -cap)
-        young = (t - m.born[mrows] <= self.cfg.reid_window_s) & (
-            m.own[mrows] | np.isin(m.ids[mrows], list(self.links))
-        )
-        if not young.any():
-            return
-        mrows, cols, seen = mrows[young], cols[young], seen.take(np.flatnonzero(young))
-        has_sig, has_hgt = seen.sig_ok, seen.hgt_ok
-        entries = self.pool + tuple(
-            self.links[int(m.ids[r])] for r in mrows if int(m.ids[r]) in self.links
-        )
-        if not entries:
-            return
-        pooled = self._pool_side(entries)
-        # colours (and heights) and faces are two cues, each averaged over the
-        # observations that carry it, their means added (they are independent given who
-        # it is): faces seen in a fifth of the frames count fully, not by a fifth
-        llr = self._pair_llr(replace(seen, emb_w=np.zeros_like(seen.emb_w)), pooled)
-        faces = np.zeros_like(llr)
-        face_w = np.zeros_like(llr)
-        if self.face.ready and seen.emb_w.any():
-            faces_only = Side(seen.sig, np.zeros_like(seen.sig_ok), seen.emb, seen.emb_w)
-            faces = self._pair_llr(faces_only, pooled)
-            face_w = seen.emb_w[:, None] * pooled.emb_w[None, :]
-        where = np.array([e.xy for e in entries])
-        since = np.array([e.lost_at for e in entries])
-        gap = np.linalg.norm(dets.xy[cols][:, None, :] - where[None, :, :], axis=2)
-        # an observation counts in a mean as much as it can say: a clean colour fully, a
-        # height alone as much as heights tell people apart against colours, a face by
-        # its confidence where the pooled identity has one (none before faces compare)
-        alone = np.where(has_hgt, self._height_worth(), 0.0)
-        weight = np.where(has_sig, 1.0, np.minimum(alone, 1.0)).tolist()
-        reach = self.cfg.reid_max_speed_mps * np.maximum(t - since, 0.0) + self.cfg.reid_margin_m
-        for k, r in enumerate(mrows.tolist()):
-            ev = self.reid_ev.setdefault(int(m.ids[r]), {})
-            for e, value, face, fw, ok in zip(
-                entries, llr[k].tolist(), faces[k].tolist(), face_w[k].tolist(),
-                (gap[k] <= reach).tolist(), strict=True,
-            ):  # fmt: skip
-                if ok:
-                    total, n, f_total, f_n = ev.get(e.stable, _NO_EVIDENCE)
-                    ev[e.stable] = (total + value, n + weight[k], f_total + face, f_n + fw)
+        self.reid.gather(mrows, cols, dets, seen, t)
 
-    def _height_worth(self) -> float:
+    def height_worth(self) -> float:
         """What a height alone says of who someone is, against a clean colour (0-1).
 
         The ratio of the two cues' separations (the mean log-likelihood ratio over same
@@ -695,163 +609,9 @@ class AppearanceIdentity:
     # -------------------------------------------------------------- decisions
 
     def _decide(self, table: TrackTable, t: float) -> None:
-        """Expire the pool, revisit links, link young tracks, hand out names."""
-        cfg, m = self.cfg, self.models
-        self.pool = tuple(e for e in self.pool if t - e.lost_at <= cfg.pool_s)
-        for tid in list(self.links):
-            row = m.rows(np.array([tid]))[0]
-            if row < 0:
-                continue
-            entry = self.links[tid]
-            if t - m.born[row] > cfg.reid_window_s:
-                del self.links[tid]  # settled
-                self._settle(tid, linked=True)
-            elif _mean(self.reid_ev.get(tid, {}).get(entry.stable)) <= cfg.unlink_evidence:
-                del self.links[tid]
-                m.stable[row], m.own[row] = tid, True
-                self.since.pop(tid, None)
-                self.pool += (entry,)
-                self.counters["unlinked"] += 1
-        for tid in [k for k in self.reid_ev if k not in self.links]:
-            row = m.rows(np.array([tid]))[0]
-            if row < 0:
-                del self.reid_ev[tid]
-            elif t - m.born[row] > cfg.reid_window_s:
-                self._settle(tid, linked=False)
-        self._link(table, t)
+        """Re-identification's decisions (:mod:`.reid`), then names."""
+        self.reid.decide(table, t)
         self._name(table)
-
-    def _settle(self, tid: int, linked: bool) -> None:
-        """Track ``tid``'s re-identification window is over: its evidence joins the prior."""
-        evidence = self.reid_ev.pop(tid, {})
-        self.returns.add(np.array([_mean(e) for e in evidence.values()]))
-        if not linked:
-            self._resemble(tid, evidence)
-
-    def _resemble(self, tid: int, evidence: dict[int, _Evidence]) -> None:
-        """Which pooled identities track ``tid``, which took none, may be the person of.
-
-        A track that looked like some (a mean of at least ``reid_mean_llr``, within
-        ``reid_margin`` of its best) may be their person, back under a new identity: the
-        earlier identities of one person who was not taken back before. Its pooled
-        identity, when it is lost, replaces theirs: left side by side, the person's
-        identities would split the posterior at every later return, and none would
-        ever be taken back. Not when two of them were there at the same time: they are
-        two people, and the track can be at most one of them.
-        """
-        means = {stable: _mean(e) for stable, e in evidence.items()}
-        best = max(means.values(), default=-np.inf)
-        if best < self.cfg.reid_mean_llr:
-            return
-        floor = max(best - self.cfg.reid_margin, self.cfg.reid_mean_llr)
-        alike = [e for e in self.pool if means.get(e.stable, -np.inf) >= floor]
-        if not alike:
-            return
-        born, lost = np.array([(e.born_at, e.lost_at) for e in alike]).T
-        together = (born[:, None] <= lost[None, :]) & (born[None, :] <= lost[:, None])
-        if together.sum() == len(alike):  # each only with itself
-            self.resembled[tid] = tuple(e.stable for e in alike)
-
-    def _link(self, table: TrackTable, t: float) -> None:
-        """Young confirmed tracks take back the pooled identities they clearly are.
-
-        The test is on the *mean* log-likelihood ratio of a track's observations against
-        each pooled identity (successive frames are far from independent: their sum
-        would soon pass any threshold for a stranger who merely dresses alike), once
-        the track has been observed for ``reid_min_s``.
-        """
-        cfg, m = self.cfg, self.models
-        if not self.pool or not self.reid_ev:
-            return
-        confirmed = set(table.ids[table.confirmed].tolist())
-        rows = m.rows(np.array(list(self.reid_ev), dtype=np.int64))
-        old_enough = {
-            tid for tid, r in zip(self.reid_ev, rows.tolist(), strict=True)
-            if r >= 0 and t - m.born[r] >= cfg.reid_min_s
-        }  # fmt: skip
-        cands = [
-            tid for tid in self.reid_ev
-            if tid not in self.links and tid in confirmed and tid in old_enough
-        ]  # fmt: skip
-        if not cands:
-            return
-        raw = np.array([[_mean(self.reid_ev[c].get(e.stable)) for e in self.pool] for c in cands])
-        ev = np.maximum(raw, -1e3)
-        # another young track for the same identity: two that look alike block each
-        # other (better no link than a stranger's); rivals for the same track are in
-        # the posterior's normalisation
-        top_col = ev.max(axis=0, keepdims=True)
-        second_col = np.full_like(top_col, -1e3)
-        if ev.shape[0] > 1:
-            second_col = np.sort(ev, axis=0)[-2:-1, :]
-        rival_col = np.where(ev >= top_col, second_col, top_col)
-        qualifies = (
-            (ev >= cfg.reid_mean_llr)
-            & (link_posterior(raw, self.returns.rate) >= cfg.reid_min_posterior)
-            & (ev - rival_col >= cfg.reid_margin)
-        )
-        if qualifies.any():
-            qualifies &= self._beats_impostors(cands)
-        if not qualifies.any():
-            return
-        rows, cols = linear_sum_assignment(np.where(qualifies, -ev, 1e6))
-        taken = set()
-        for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
-            if not qualifies[r, c]:
-                continue
-            entry, tid = self.pool[c], cands[r]
-            row = m.rows(np.array([tid]))[0]
-            m.stable[row], m.own[row] = entry.stable, False
-            m.name_ev[row] = np.maximum(m.name_ev[row], entry.name_ev)
-            self.links[tid] = entry
-            self.since[tid] = entry.born_at
-            taken.add(c)
-            self.counters["reidentified"] += 1
-        self.pool = tuple(e for k, e in enumerate(self.pool) if k not in taken)
-
-    def _beats_impostors(self, cands: list[int]) -> np.ndarray:
-        """Whether each candidate looks more like each pooled identity than others did.
-
-        ``(C, P)``: the candidate's model against the pooled one beats, by
-        ``reid_margin``, the most alike anyone else known to be someone else ever looked
-        (a candidate is not its own impostor).
-        """
-        rows = self.models.rows(np.array(cands, dtype=np.int64))
-        everything = np.ones(len(rows), dtype=bool)  # a candidate's colours always count
-        out = self._pair_llr(
-            self._models_side(rows, everything, visit=True), self._pool_side(self.pool)
-        )
-        pool = self.pool
-        itself = np.array(cands)[:, None] == np.array([e.impostor_id for e in pool])[None]
-        impostor = np.where(
-            itself,
-            np.array([e.impostor_next for e in pool])[None],
-            np.array([e.impostor for e in pool])[None],
-        )
-        return out >= impostor + self.cfg.reid_margin
-
-    def _impostors(self, row: int) -> dict[str, float | int]:
-        """How alike the people alive with track ``row`` look to it (see PooledIdentity).
-
-        Score normalisation against an impostor cohort, as speaker and face verification
-        do: a pooled identity is only taken by a look that beats every look known to be
-        someone else's. The two most alike are kept: one of them may be the person's
-        own new track, begun before this one was given up.
-        """
-        m = self.models
-        others = np.setdiff1d(np.flatnonzero(m.sig_n >= self.cfg.min_observations), [row])
-        if not len(others):
-            return {}
-        llr = self._pair_llr(
-            self._models_side(np.array([row]), visit=True),
-            self._models_side(others, visit=True),
-        )[0]
-        order = np.argsort(llr)[::-1]
-        return {
-            "impostor": float(llr[order[0]]),
-            "impostor_id": int(m.ids[others[order[0]]]),
-            "impostor_next": float(llr[order[1]]) if len(order) > 1 else -np.inf,
-        }
 
     def _name(self, table: TrackTable) -> None:
         """Names to confirmed tracks one-to-one, by evidence, with hysteresis."""
@@ -887,27 +647,29 @@ class AppearanceIdentity:
 
     def snapshot(self) -> tuple:
         """Everything the late-batch replay and the checkpoint must restore."""
+        reid = self.reid
         return (
-            self.models.copy(), self.pool, dict(self.links),
-            {k: dict(v) for k, v in self.reid_ev.items()}, dict(self.named),
-            self.colour.state(), self.face.state(), dict(self.apart), self.returns.state(),
+            self.models.copy(), reid.pool, dict(reid.links),
+            {k: dict(v) for k, v in reid.reid_ev.items()}, dict(self.named),
+            self.colour.state(), self.face.state(), dict(self.apart), reid.returns.state(),
             dict(self.together), tuple(self.roster.names), len(self.told),
-            self.stature.state(), self.height_bias.state(), dict(self.resembled), dict(self.since),
+            self.stature.state(), self.height_bias.state(), dict(reid.resembled), dict(reid.since),
             self.swaps.state(), self.gaps.state(),
         )  # fmt: skip
 
     def restore(self, state: tuple) -> None:
         """Return to a :meth:`snapshot`."""
         models, pool, links, reid_ev, named, colour, face, apart, *rest = state
+        reid = self.reid
         # checkpoints written before the time was kept hold a set: seen apart long ago
         self.apart = dict(apart) if isinstance(apart, dict) else dict.fromkeys(apart, -np.inf)
         if rest:  # checkpoints written before the return rate was kept lack it
-            self.returns.restore(rest[0])
+            reid.returns.restore(rest[0])
         self.together = dict(rest[1]) if len(rest) > 1 else dict(self.apart)
         self.models = models.copy()
-        self.pool, self.links, self.named = pool, dict(links), dict(named)
+        reid.pool, reid.links, self.named = pool, dict(links), dict(named)
         # checkpoints written before faces were averaged apart hold (sum, observations)
-        self.reid_ev = {
+        reid.reid_ev = {
             k: {s: (*e, 0.0, 0.0)[:4] for s, e in v.items()} for k, v in reid_ev.items()
         }
         self.colour.restore(colour)
@@ -917,8 +679,8 @@ class AppearanceIdentity:
             self.height_bias.restore(rest[5])
         else:
             self.stature, self.height_bias = DistanceLikelihood(self.cfg.max_llr), HeightBias()
-        self.resembled = dict(rest[6]) if len(rest) > 6 else {}
-        self.since = dict(rest[7]) if len(rest) > 7 else {}
+        reid.resembled = dict(rest[6]) if len(rest) > 6 else {}
+        reid.since = dict(rest[7]) if len(rest) > 7 else {}
         self.swaps.restore(rest[8] if len(rest) > 8 else ({}, -np.inf))
         self.gaps.restore(rest[9] if len(rest) > 9 else ({}, {}))
         self.split = {}
@@ -936,29 +698,6 @@ def _pairs(ids_a: np.ndarray, ids_b: np.ndarray) -> list[tuple[int, int]]:
     return [
         (a, b) if a < b else (b, a) for a, b in zip(ids_a.tolist(), ids_b.tolist(), strict=True)
     ]
-
-
-def _remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(mapping))
-    old = mapping >= 0
-    if old.any() and len(values):
-        out[old] = values[mapping[old]]
-    return out
-
-
-def _mean(evidence: _Evidence | None) -> float:
-    """Mean log-likelihood ratio of ``(sum, observations, face sum, face observations)``.
-
-    ``-inf`` without any evidence. Colours (with heights) and faces are each averaged
-    over the observations that carry them, weighted by what they can say (see
-    ``_gather_evidence``), and the means added; a cue with fewer than
-    :data:`MIN_REID_OBSERVATIONS` says nothing yet.
-    """
-    if not evidence:
-        return -np.inf
-    total, n, f_total, f_n = evidence
-    colours = total / n if n >= MIN_REID_OBSERVATIONS else 0.0
-    return colours + (f_total / f_n if f_n >= MIN_REID_OBSERVATIONS else 0.0)
 
 
 def _looks_side(
