@@ -80,6 +80,12 @@ class TrackerConfig(StrictModel):
         A track this close to a confirmed one must move to be confirmed: a steady blob
         beside a tracked person is more likely that person seen otherwise (a second
         sensor's offset view, a raised arm, a bag) than a second, motionless person.
+    confirm_still_per_sensor : bool
+        A track that has not moved may also be confirmed by one sensor's steady view of
+        it alone (that sensor's own sequential test, at the same error overall), beside
+        a confirmed track too, where only the sensor's frames that detected both count:
+        a person standing still in a group, partly hidden from the other sensors, is
+        confirmed by the one that sees them beside their neighbour.
     birth_min_separation_m : float
         A detection closer than this to a confirmed track never starts a new track: two
         people's centres are never that close (a people detector merges them first).
@@ -281,6 +287,7 @@ class TrackerConfig(StrictModel):
     confirm_still_error: float = Field(1e-3, ge=0.0, lt=1.0)
     confirm_still_min_age_s: float = Field(1.0, ge=0.0, le=60.0)
     confirm_still_clearance_m: float = Field(1.0, ge=0.0, le=10.0)
+    confirm_still_per_sensor: bool = False
     birth_gate_probability: float = Field(0.9999, ge=0.5, le=0.999999)
     birth_min_separation_m: float = Field(0.4, ge=0.0, le=2.0)
     sec_before_fake: float = Field(2.4, gt=0.0, le=60.0)

@@ -119,6 +119,9 @@ def new_rows(
         "multi_t": np.full(n, -np.inf),
         "evidence": np.full(n, params.evidence_per_hit),
         "sensor_hit_t": _first_hit(n, sensor_index, t),
+        "sensor_evidence": np.where(
+            np.isfinite(_first_hit(n, sensor_index, t)), params.evidence_per_hit, 0.0
+        ),
     }
 
 
@@ -154,7 +157,33 @@ def update_support(
     tb.evidence[counted] += np.where(
         hit[counted], params.evidence_per_hit, params.evidence_per_miss
     )
+    if params.sensor_evidence:
+        _sensor_evidence(tb, hit, counted, slot, params)
     tb.sensor_hit_t[hit, slot] = t
+
+
+def _sensor_evidence(
+    tb: TrackTable, hit: np.ndarray, counted: np.ndarray, slot: int, params: TrackerParams
+) -> None:
+    """One sensor's frame adds to its own part of tentative tracks' evidence.
+
+    Beside a confirmed track (within ``params.co_detection_m``) the frame counts only
+    if the sensor detected that track in it too: the question there is whether the
+    sensor sees two people where it sees one, and a frame that missed the confirmed
+    person cannot tell (it says nothing of an offset or a split view of them either,
+    which never comes as a second blob in the same frame as the person).
+    """
+    rows = np.flatnonzero(counted & ~tb.confirmed)
+    if not len(rows):
+        return
+    conf = np.flatnonzero(tb.confirmed)
+    if params.co_detection_m > 0 and len(conf):
+        gap = np.linalg.norm(tb.x[rows, None, 0:2] - tb.x[None, conf, 0:2], axis=2)
+        beside = gap < params.co_detection_m
+        rows = rows[~beside.any(axis=1) | (beside & hit[conf][None, :]).any(axis=1)]
+    tb.sensor_evidence[rows, slot] += np.where(
+        hit[rows], params.evidence_per_hit, params.evidence_per_miss
+    )
 
 
 def _first_hit(n: int, sensor_index: int, t: float) -> np.ndarray:
@@ -199,6 +228,7 @@ def fold_into(tb: TrackTable, keep: np.ndarray, drop: np.ndarray) -> None:
     tb.hits[keep] += tb.hits[drop]
     tb.evidence[keep] = np.maximum(tb.evidence[keep], tb.evidence[drop])
     tb.sensor_hit_t[keep] = np.maximum(tb.sensor_hit_t[keep], tb.sensor_hit_t[drop])
+    tb.sensor_evidence[keep] = np.maximum(tb.sensor_evidence[keep], tb.sensor_evidence[drop])
     tb.support[keep] = np.maximum(tb.support[keep], tb.support[drop])
     tb.confidence[keep] = np.maximum(tb.confidence[keep], tb.confidence[drop])
     _remove(tb, drop)

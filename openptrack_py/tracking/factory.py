@@ -47,6 +47,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             min_separation_m=cfg.birth_min_separation_m,
             still_min_age_s=cfg.confirm_still_min_age_s,
             still_clearance_m=cfg.confirm_still_clearance_m,
+            still_per_sensor=cfg.confirm_still_per_sensor,
             still_evidence=(
                 math.log(1.0 / cfg.confirm_still_error)
                 if cfg.confirm_still_error > 0
@@ -98,6 +99,8 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             evidence_per_miss=math.log(
                 (1.0 - cfg.confirm_still_person_rate) / (1.0 - cfg.confirm_still_clutter_rate)
             ),
+            sensor_evidence=cfg.confirm_still_per_sensor,
+            co_detection_m=cfg.confirm_still_clearance_m if cfg.confirm_still_per_sensor else 0.0,
         ),
     )
 

@@ -31,6 +31,11 @@ Confirmation asks for *consistent evidence*, not a count of anything:
   of a second, in one sensor's view), so steadiness alone also needs ``still_min_age_s``
   unless two sensors have detected the track, and a track beside a confirmed one (that
   person seen otherwise, more likely than a second one standing motionless) must move.
+  With ``still_per_sensor`` each sensor's frames are also a test of their own, so one
+  sensor's steady view confirms a person the others barely see (a child in a group,
+  hidden from two of three sensors by a neighbour); beside a confirmed track that test
+  counts only the frames in which the sensor detected both, two blobs at once, which a
+  second sensor's offset view or a split of one person does not give for long.
   A track that continues a lost person who
   was walking (they reappear from behind a
   pillar within walking reach) needs neither.
@@ -87,6 +92,14 @@ class ConfidenceInitiator:
         steady blob beside a tracked person is more likely that person seen otherwise (a
         second sensor's offset view, a raised arm, a bag) than a second person standing
         motionless.
+    still_per_sensor : bool
+        A track that has not moved is also confirmed when one sensor's own evidence
+        (``TrackTable.sensor_evidence``) reaches ``still_evidence`` plus the log of the
+        number of sensors that detected it (each sensor a test of its own, at the same
+        error overall), after ``still_min_age_s``, beside a confirmed track too: there
+        that evidence counts only the sensor's frames that detected both (two blobs in
+        one frame), so a person partly hidden from the other sensors, standing half a
+        metre from a neighbour, is confirmed by the sensor that sees both of them.
     """
 
     min_confidence: float
@@ -99,6 +112,7 @@ class ConfidenceInitiator:
     still_evidence: float = float("inf")
     still_min_age_s: float = 0.0
     still_clearance_m: float = 0.0
+    still_per_sensor: bool = False
 
     def initiate(
         self,
@@ -144,11 +158,20 @@ class ConfidenceInitiator:
                 rows = np.flatnonzero(steady)
                 near = nearest_distance(table.x[rows, 0:2], table.x[table.confirmed, 0:2])
                 steady[rows] = near >= self.still_clearance_m
+            if self.still_per_sensor:
+                steady |= self._steady_to_one_sensor(table, t)
             moved |= steady
             if continuing is not None:
                 moved |= continuing
             ready &= moved
         return table.confirmed | ready
+
+    def _steady_to_one_sensor(self, table: TrackTable, t: float) -> np.ndarray:
+        """Tentative tracks one sensor alone has seen steadily (see ``still_per_sensor``)."""
+        sensors = np.maximum(np.isfinite(table.sensor_hit_t).sum(axis=1), 1)
+        need = self.still_evidence + np.log(sensors)
+        steady = table.sensor_evidence.max(axis=1, initial=-np.inf) >= need
+        return steady & ~table.confirmed & (t - table.first_seen >= self.still_min_age_s)
 
 
 @dataclass(frozen=True)

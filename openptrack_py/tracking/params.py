@@ -81,6 +81,13 @@ class TrackerParams:
     evidence_memory_s : float
         A sensor's frames count toward a track's evidence while it has detected the
         track within this long.
+    sensor_evidence : bool
+        Also keep each sensor's own part of a tentative track's evidence
+        (``TrackTable.sensor_evidence``).
+    co_detection_m : float
+        Within this distance of a confirmed track, a sensor's frame counts toward a
+        tentative track's own evidence from that sensor only if the sensor detected the
+        confirmed track in it too (two blobs in one frame).
     """
 
     detector_weight: float = -1.0
@@ -109,6 +116,8 @@ class TrackerParams:
     evidence_per_hit: float = 0.0
     evidence_per_miss: float = 0.0
     evidence_memory_s: float = 0.5
+    sensor_evidence: bool = False
+    co_detection_m: float = 0.0
 
     def __post_init__(self) -> None:
         if self.late_policy not in ("replay", "drop"):

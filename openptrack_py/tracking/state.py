@@ -240,6 +240,10 @@ class TrackTable:
     sensor_hit_t : ndarray
         ``(n, SENSOR_SLOTS)`` last time each sensor (by index; later sensors share the
         last slot) detected the track; ``-inf`` for never.
+    sensor_evidence : ndarray
+        ``(n, SENSOR_SLOTS)`` each sensor's own part of ``evidence`` for a tentative
+        track, counting, beside a confirmed track, only the frames in which the sensor
+        detected that track too (see ``lifecycle``); kept only when asked for.
     """
 
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
@@ -262,12 +266,19 @@ class TrackTable:
     multi_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     evidence: np.ndarray = field(default_factory=lambda: np.zeros(0))
     sensor_hit_t: np.ndarray = field(default_factory=lambda: np.zeros((0, SENSOR_SLOTS)))
+    sensor_evidence: np.ndarray = field(default_factory=lambda: np.zeros((0, SENSOR_SLOTS)))
 
     COLUMNS = (
         "ids", "x", "cov", "z", "height", "confidence", "first_seen", "last_seen", "hits",
         "confirmed", "hist_t", "hist_xy", "support", "birth_xy", "birth_n", "recent_xy",
-        "last_sensor", "multi_t", "evidence", "sensor_hit_t",
+        "last_sensor", "multi_t", "evidence", "sensor_hit_t", "sensor_evidence",
     )  # fmt: skip
+
+    def __setstate__(self, state: dict[str, np.ndarray]) -> None:
+        # a table pickled (checkpointed) before the per-sensor evidence was kept
+        self.__dict__.update(state)
+        if "sensor_evidence" not in state:
+            self.sensor_evidence = np.zeros((len(self.ids), SENSOR_SLOTS))
 
     def __len__(self) -> int:
         return len(self.ids)
