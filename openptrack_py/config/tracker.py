@@ -83,9 +83,9 @@ class TrackerConfig(StrictModel):
     confirm_still_per_sensor : bool
         A track that has not moved may also be confirmed by one sensor's steady view of
         it alone (that sensor's own sequential test, at the same error overall), beside
-        a confirmed track too, where only the sensor's frames that detected both count:
-        a person standing still in a group, partly hidden from the other sensors, is
-        confirmed by the one that sees them beside their neighbour.
+        confirmed tracks too, where only the sensor's frames that detected each of them
+        as well count: a person standing still in a group, partly hidden from the other
+        sensors, is confirmed by the one that sees them beside their neighbours.
     birth_min_separation_m : float
         A detection closer than this to a confirmed track never starts a new track: two
         people's centres are never that close (a people detector merges them first).

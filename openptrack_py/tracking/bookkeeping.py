@@ -167,11 +167,12 @@ def _sensor_evidence(
 ) -> None:
     """One sensor's frame adds to its own part of tentative tracks' evidence.
 
-    Beside a confirmed track (within ``params.co_detection_m``) the frame counts only
-    if the sensor detected that track in it too: the question there is whether the
-    sensor sees two people where it sees one, and a frame that missed the confirmed
-    person cannot tell (it says nothing of an offset or a split view of them either,
-    which never comes as a second blob in the same frame as the person).
+    Beside confirmed tracks (within ``params.co_detection_m``) the frame counts only
+    if the sensor detected every one of them in it too: the question there is whether
+    the sensor sees one more person than those, and a frame that missed one of them
+    cannot tell (its detection of that person may be the one this track took; nor
+    does an offset or a split view of a person come as a second blob beside them for
+    long).
     """
     rows = np.flatnonzero(counted & ~tb.confirmed)
     if not len(rows):
@@ -180,7 +181,7 @@ def _sensor_evidence(
     if params.co_detection_m > 0 and len(conf):
         gap = np.linalg.norm(tb.x[rows, None, 0:2] - tb.x[None, conf, 0:2], axis=2)
         beside = gap < params.co_detection_m
-        rows = rows[~beside.any(axis=1) | (beside & hit[conf][None, :]).any(axis=1)]
+        rows = rows[(~beside | hit[conf][None, :]).all(axis=1)]
     tb.sensor_evidence[rows, slot] += np.where(
         hit[rows], params.evidence_per_hit, params.evidence_per_miss
     )

@@ -33,9 +33,10 @@ Confirmation asks for *consistent evidence*, not a count of anything:
   person seen otherwise, more likely than a second one standing motionless) must move.
   With ``still_per_sensor`` each sensor's frames are also a test of their own, so one
   sensor's steady view confirms a person the others barely see (a child in a group,
-  hidden from two of three sensors by a neighbour); beside a confirmed track that test
-  counts only the frames in which the sensor detected both, two blobs at once, which a
-  second sensor's offset view or a split of one person does not give for long.
+  hidden from two of three sensors by a neighbour); beside confirmed tracks that test
+  counts only the frames in which the sensor detected each of them too (one blob more
+  than the people tracked there), which a second sensor's offset view or a split of
+  one person does not give for long.
   A track that continues a lost person who
   was walking (they reappear from behind a
   pillar within walking reach) needs neither.
@@ -96,10 +97,11 @@ class ConfidenceInitiator:
         A track that has not moved is also confirmed when one sensor's own evidence
         (``TrackTable.sensor_evidence``) reaches ``still_evidence`` plus the log of the
         number of sensors that detected it (each sensor a test of its own, at the same
-        error overall), after ``still_min_age_s``, beside a confirmed track too: there
-        that evidence counts only the sensor's frames that detected both (two blobs in
-        one frame), so a person partly hidden from the other sensors, standing half a
-        metre from a neighbour, is confirmed by the sensor that sees both of them.
+        error overall), after ``still_min_age_s``, beside confirmed tracks too: there
+        that evidence counts only the sensor's frames that detected each of them as
+        well (one blob more than the people tracked there), so a person partly hidden
+        from the other sensors, standing half a metre from a neighbour, is confirmed by
+        the sensor that sees both of them.
     """
 
     min_confidence: float

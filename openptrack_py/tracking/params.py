@@ -85,9 +85,9 @@ class TrackerParams:
         Also keep each sensor's own part of a tentative track's evidence
         (``TrackTable.sensor_evidence``).
     co_detection_m : float
-        Within this distance of a confirmed track, a sensor's frame counts toward a
-        tentative track's own evidence from that sensor only if the sensor detected the
-        confirmed track in it too (two blobs in one frame).
+        Within this distance of confirmed tracks, a sensor's frame counts toward a
+        tentative track's own evidence from that sensor only if the sensor detected each
+        of them in it too (one blob more than the people tracked there).
     """
 
     detector_weight: float = -1.0

@@ -1,8 +1,9 @@
 """A person standing still beside another: confirmed by the one sensor that sees both.
 
-``confirm_still_per_sensor``: each sensor's own sequential test, beside a confirmed track
-counting only the frames in which that sensor detected both people (two blobs in one
-frame); a second sensor's offset view of one person never comes so.
+``confirm_still_per_sensor``: each sensor's own sequential test, beside confirmed tracks
+counting only the frames in which that sensor detected each of them too (one blob more
+than the people tracked there); a second sensor's offset view of one person never
+comes so.
 """
 
 from __future__ import annotations
@@ -20,13 +21,13 @@ from tests.tracking.helpers import FRAME, T0
 
 STANDS_AT = np.array([3.0, 3.0])
 BESIDE = np.array([3.6, 3.0])  # 0.6 m away: two children at a table
+NEIGHBOUR = np.array([3.6, 3.7])  # 0.7 m from BESIDE, 0.92 m from the first
 SENSORS = ("near", "far_a", "far_b")
 
 
-def _first_walks_in(t: float) -> np.ndarray:
-    """Walks in from (1, 1) over 3 s (so is confirmed by moving), then stands."""
-    start = np.array([1.0, 1.0])
-    return start + min(t / 3.0, 1.0) * (STANDS_AT - start)
+def _walks_in(t: float, start: tuple[float, float], stop: np.ndarray) -> np.ndarray:
+    """Walks in from ``start`` over 3 s (so is confirmed by moving), then stands."""
+    return np.asarray(start) + min(t / 3.0, 1.0) * (stop - np.asarray(start))
 
 
 def _det(xy: np.ndarray, rng: np.random.Generator) -> Detection:
@@ -42,7 +43,9 @@ def _run(
     ``second``: ``"person"``, a second person standing at ``BESIDE`` whom only the
     ``near`` sensor sees well (the other two see them in 15 % of frames, hidden behind
     the first); ``"offset"``, nobody there, but ``far_a`` reports the first person at
-    ``BESIDE`` whenever it sees them once they stand (its calibration 0.6 m off there).
+    ``BESIDE`` whenever it sees them once they stand (its calibration 0.6 m off there);
+    ``"offset+neighbour"``, the same with a third person standing at ``NEIGHBOUR``,
+    whom every sensor sees.
     """
     rng = np.random.default_rng(seed)
     tracker = build_tracker(config)
@@ -50,11 +53,13 @@ def _run(
     for k in range(int(seconds / FRAME)):
         for i, sensor in enumerate(SENSORS):
             t = k * FRAME + 0.011 * i
-            first = _first_walks_in(t)
+            first = _walks_in(t, (1.0, 1.0), STANDS_AT)
             dets = []
             if rng.random() < 0.95:
-                offset = second == "offset" and sensor == "far_a" and t > 3.0
+                offset = second.startswith("offset") and sensor == "far_a" and t > 3.0
                 dets.append(_det(BESIDE if offset else first, rng))
+            if second == "offset+neighbour" and rng.random() < 0.95:
+                dets.append(_det(_walks_in(t, (5.0, 5.0), NEIGHBOUR), rng))
             rate = 0.95 if sensor == "near" else 0.15
             if second == "person" and rng.random() < rate:
                 dets.append(_det(BESIDE, rng))
@@ -80,9 +85,14 @@ def test_a_person_beside_another_is_confirmed_by_the_sensor_that_sees_both(seed:
 
 
 @pytest.mark.parametrize("seed", [0, 1], ids=["seed0", "seed1"])
-def test_an_offset_view_of_one_person_beside_them_is_never_a_second_person(seed: int) -> None:
+@pytest.mark.parametrize("second", ["offset", "offset+neighbour"])
+def test_an_offset_view_of_one_person_beside_them_is_never_a_second_person(
+    seed: int, second: str
+) -> None:
+    """Also where the sensor does see another tracked person beside the offset blob:
+    the blob is one more than the people there only if it saw the first person too."""
     on = TrackerConfig(confirm_still_per_sensor=True)
-    near_first, near_second = _run(on, 20.0, seed, "offset")
+    near_first, near_second = _run(on, 20.0, seed, second)
     assert not set().union(*near_second)
     assert len(set().union(*near_first[int(4 / FRAME) :])) == 1
 
