@@ -86,6 +86,9 @@ class TrackerConfig(StrictModel):
         confirmed tracks too, where only the sensor's frames that detected each of them
         as well count: a person standing still in a group, partly hidden from the other
         sensors, is confirmed by the one that sees them beside their neighbours.
+    confirm_one_sensor_min_age_s : float
+        Least age of a track confirmed so (by one sensor's view alone): a split of a
+        person, or a transient false positive, lasts a fraction of a second.
     birth_min_separation_m : float
         A detection closer than this to a confirmed track never starts a new track: two
         people's centres are never that close (a people detector merges them first).
@@ -288,6 +291,7 @@ class TrackerConfig(StrictModel):
     confirm_still_min_age_s: float = Field(1.0, ge=0.0, le=60.0)
     confirm_still_clearance_m: float = Field(1.0, ge=0.0, le=10.0)
     confirm_still_per_sensor: bool = False
+    confirm_one_sensor_min_age_s: float = Field(1.0, ge=0.0, le=60.0)
     birth_gate_probability: float = Field(0.9999, ge=0.5, le=0.999999)
     birth_min_separation_m: float = Field(0.4, ge=0.0, le=2.0)
     sec_before_fake: float = Field(2.4, gt=0.0, le=60.0)

@@ -48,6 +48,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             still_min_age_s=cfg.confirm_still_min_age_s,
             still_clearance_m=cfg.confirm_still_clearance_m,
             still_per_sensor=cfg.confirm_still_per_sensor,
+            one_sensor_min_age_s=cfg.confirm_one_sensor_min_age_s,
             still_evidence=(
                 math.log(1.0 / cfg.confirm_still_error)
                 if cfg.confirm_still_error > 0

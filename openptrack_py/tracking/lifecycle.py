@@ -97,11 +97,15 @@ class ConfidenceInitiator:
         A track that has not moved is also confirmed when one sensor's own evidence
         (``TrackTable.sensor_evidence``) reaches ``still_evidence`` plus the log of the
         number of sensors that detected it (each sensor a test of its own, at the same
-        error overall), after ``still_min_age_s``, beside confirmed tracks too: there
+        error overall), after ``one_sensor_min_age_s``, beside confirmed tracks too: there
         that evidence counts only the sensor's frames that detected each of them as
         well (one blob more than the people tracked there), so a person partly hidden
         from the other sensors, standing half a metre from a neighbour, is confirmed by
         the sensor that sees both of them.
+    one_sensor_min_age_s : float
+        Least age of a track confirmed by one sensor's steadiness: what one sensor
+        alone reports steadily for a moment may be a split of a person beside them or a
+        transient false positive, which last a fraction of a second.
     """
 
     min_confidence: float
@@ -115,6 +119,7 @@ class ConfidenceInitiator:
     still_min_age_s: float = 0.0
     still_clearance_m: float = 0.0
     still_per_sensor: bool = False
+    one_sensor_min_age_s: float = 0.0
 
     def initiate(
         self,
@@ -173,7 +178,7 @@ class ConfidenceInitiator:
         sensors = np.maximum(np.isfinite(table.sensor_hit_t).sum(axis=1), 1)
         need = self.still_evidence + np.log(sensors)
         steady = table.sensor_evidence.max(axis=1, initial=-np.inf) >= need
-        return steady & ~table.confirmed & (t - table.first_seen >= self.still_min_age_s)
+        return steady & ~table.confirmed & (t - table.first_seen >= self.one_sensor_min_age_s)
 
 
 @dataclass(frozen=True)
