@@ -45,7 +45,9 @@ def _run(
     the first); ``"offset"``, nobody there, but ``far_a`` reports the first person at
     ``BESIDE`` whenever it sees them once they stand (its calibration 0.6 m off there);
     ``"offset+neighbour"``, the same with a third person standing at ``NEIGHBOUR``,
-    whom every sensor sees.
+    whom every sensor sees; ``"split"``, nobody there, but from 5 s to 6.5 s the
+    ``near`` sensor also reports a blob at ``BESIDE`` every frame (a raised arm, a bag
+    held out: the first person split in two).
     """
     rng = np.random.default_rng(seed)
     tracker = build_tracker(config)
@@ -62,6 +64,8 @@ def _run(
                 dets.append(_det(_walks_in(t, (5.0, 5.0), NEIGHBOUR), rng))
             rate = 0.95 if sensor == "near" else 0.15
             if second == "person" and rng.random() < rate:
+                dets.append(_det(BESIDE, rng))
+            if second == "split" and sensor == "near" and 5.0 <= t < 6.5:
                 dets.append(_det(BESIDE, rng))
             out = tracker.step(DetectionBatch(sensor, k, T0 + t, "world", tuple(dets)))
             shown = [tr for tr in out.tracks if tr.confirmed]
@@ -108,3 +112,16 @@ def test_a_table_pickled_before_the_per_sensor_evidence_was_kept_loads() -> None
     restored = pickle.loads(pickle.dumps(old))
     assert restored.sensor_evidence.shape == (2, SENSOR_SLOTS)
     assert not restored.sensor_evidence.any()
+
+
+@pytest.mark.parametrize("seed", [0, 1], ids=["seed0", "seed1"])
+def test_a_split_of_one_person_must_outlast_the_one_sensor_age(seed: int) -> None:
+    """A second blob one sensor reports for 1.5 s beside a person it also detects is
+    confirmed with a 1 s least age, and not with 2 s."""
+    young = TrackerConfig(confirm_still_per_sensor=True, confirm_one_sensor_min_age_s=1.0)
+    _, near_second = _run(young, 10.0, seed, "split")
+    assert set().union(*near_second)
+    old = TrackerConfig(confirm_still_per_sensor=True, confirm_one_sensor_min_age_s=2.0)
+    near_first, near_second = _run(old, 10.0, seed, "split")
+    assert not set().union(*near_second)
+    assert len(set().union(*near_first[int(4 / FRAME) :])) == 1
