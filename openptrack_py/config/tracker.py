@@ -88,7 +88,8 @@ class TrackerConfig(StrictModel):
         sensors, is confirmed by the one that sees them beside their neighbours.
     confirm_one_sensor_min_age_s : float
         Least age of a track confirmed so (by one sensor's view alone): a split of a
-        person, or a transient false positive, lasts a fraction of a second.
+        person, or a transient false positive, lasts a fraction of a second (below
+        ``sec_before_fake``, or nothing is ever confirmed so).
     birth_min_separation_m : float
         A detection closer than this to a confirmed track never starts a new track: two
         people's centres are never that close (a people detector merges them first).
@@ -291,7 +292,7 @@ class TrackerConfig(StrictModel):
     confirm_still_min_age_s: float = Field(1.0, ge=0.0, le=60.0)
     confirm_still_clearance_m: float = Field(1.0, ge=0.0, le=10.0)
     confirm_still_per_sensor: bool = False
-    confirm_one_sensor_min_age_s: float = Field(1.0, ge=0.0, le=60.0)
+    confirm_one_sensor_min_age_s: float = Field(2.0, ge=0.0, le=60.0)
     birth_gate_probability: float = Field(0.9999, ge=0.5, le=0.999999)
     birth_min_separation_m: float = Field(0.4, ge=0.0, le=2.0)
     sec_before_fake: float = Field(2.4, gt=0.0, le=60.0)
@@ -351,6 +352,13 @@ class TrackerConfig(StrictModel):
             raise ValueError(
                 f"confirm_still_clutter_rate ({self.confirm_still_clutter_rate}) must be less "
                 f"than confirm_still_person_rate ({self.confirm_still_person_rate})"
+            )
+        late = self.confirm_one_sensor_min_age_s >= self.sec_before_fake
+        if self.confirm_still_per_sensor and late:
+            raise ValueError(
+                f"confirm_one_sensor_min_age_s ({self.confirm_one_sensor_min_age_s}) must be "
+                f"less than sec_before_fake ({self.sec_before_fake}): a tentative track is "
+                f"deleted before one sensor could confirm it"
             )
         return self
 
