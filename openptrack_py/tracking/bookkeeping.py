@@ -98,6 +98,7 @@ def new_rows(
     hist_t[:, 0] = t
     hist_xy = np.zeros((n, HISTORY, 2))
     hist_xy[:, 0] = dets.xy[new]
+    hit_t = _first_hit(n, sensor_index, t)
     return {
         "ids": ids,
         "x": x,
@@ -118,10 +119,8 @@ def new_rows(
         "last_sensor": np.full(n, sensor_index),
         "multi_t": np.full(n, -np.inf),
         "evidence": np.full(n, params.evidence_per_hit),
-        "sensor_hit_t": _first_hit(n, sensor_index, t),
-        "sensor_evidence": np.where(
-            np.isfinite(_first_hit(n, sensor_index, t)), params.evidence_per_hit, 0.0
-        ),
+        "sensor_hit_t": hit_t,
+        "sensor_evidence": np.where(np.isfinite(hit_t), params.evidence_per_hit, 0.0),
     }
 
 

@@ -242,8 +242,8 @@ class TrackTable:
         last slot) detected the track; ``-inf`` for never.
     sensor_evidence : ndarray
         ``(n, SENSOR_SLOTS)`` each sensor's own part of ``evidence`` for a tentative
-        track, counting, beside a confirmed track, only the frames in which the sensor
-        detected that track too (see ``lifecycle``); kept only when asked for.
+        track, counting, beside confirmed tracks, only the frames in which the sensor
+        detected each of them too (see ``lifecycle``); kept only when asked for.
     """
 
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
