@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from openptrack_py.tracking.neighbours import count_within
 from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.sensor_model import SensorUpdates
 from openptrack_py.tracking.state import (
@@ -176,11 +177,9 @@ def _sensor_evidence(
     rows = np.flatnonzero(counted & ~tb.confirmed)
     if not len(rows):
         return
-    conf = np.flatnonzero(tb.confirmed)
-    if params.co_detection_m > 0 and len(conf):
-        gap = np.linalg.norm(tb.x[rows, None, 0:2] - tb.x[None, conf, 0:2], axis=2)
-        beside = gap < params.co_detection_m
-        rows = rows[(~beside | hit[conf][None, :]).all(axis=1)]
+    if params.co_detection_m > 0:
+        missed = tb.x[tb.confirmed & ~hit, 0:2]  # confirmed tracks this frame did not detect
+        rows = rows[count_within(tb.x[rows, 0:2], missed, params.co_detection_m) == 0]
     tb.sensor_evidence[rows, slot] += np.where(
         hit[rows], params.evidence_per_hit, params.evidence_per_miss
     )

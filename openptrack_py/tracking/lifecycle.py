@@ -157,7 +157,8 @@ class ConfidenceInitiator:
         if self.min_displacement_m > 0:
             # measured on the detections, not the filter (which drifts while unseen)
             moved = np.hypot(*(table.recent_xy - table.birth_xy).T) >= self.min_displacement_m
-            two_sensors = np.isfinite(table.sensor_hit_t).sum(axis=1) >= 2
+            seen_by = np.isfinite(table.sensor_hit_t).sum(axis=1)
+            two_sensors = seen_by >= 2
             lasting = (t - table.first_seen >= self.still_min_age_s) | two_sensors
             steady = (table.evidence >= self.still_evidence) & lasting
             steady &= ~table.confirmed
@@ -166,17 +167,21 @@ class ConfidenceInitiator:
                 near = nearest_distance(table.x[rows, 0:2], table.x[table.confirmed, 0:2])
                 steady[rows] = near >= self.still_clearance_m
             if self.still_per_sensor:
-                steady |= self._steady_to_one_sensor(table, t)
+                steady |= self._steady_to_one_sensor(table, t, seen_by)
             moved |= steady
             if continuing is not None:
                 moved |= continuing
             ready &= moved
         return table.confirmed | ready
 
-    def _steady_to_one_sensor(self, table: TrackTable, t: float) -> np.ndarray:
-        """Tentative tracks one sensor alone has seen steadily (see ``still_per_sensor``)."""
-        sensors = np.maximum(np.isfinite(table.sensor_hit_t).sum(axis=1), 1)
-        need = self.still_evidence + np.log(sensors)
+    def _steady_to_one_sensor(
+        self, table: TrackTable, t: float, seen_by: np.ndarray
+    ) -> np.ndarray:
+        """Tentative tracks one sensor alone has seen steadily (see ``still_per_sensor``).
+
+        ``seen_by``: how many sensors have detected each track.
+        """
+        need = self.still_evidence + np.log(np.maximum(seen_by, 1))
         steady = table.sensor_evidence.max(axis=1, initial=-np.inf) >= need
         return steady & ~table.confirmed & (t - table.first_seen >= self.one_sensor_min_age_s)
 

@@ -53,7 +53,12 @@ from openptrack_py.tracking.identity.likelihood import (
     rowwise_distance,
 )
 from openptrack_py.tracking.identity.models import PooledIdentity, Side, TrackLooks, TrackModels
-from openptrack_py.tracking.identity.reid import MIN_REID_OBSERVATIONS, Evidence, ReidPool
+from openptrack_py.tracking.identity.reid import (
+    MIN_REID_OBSERVATIONS,
+    Evidence,
+    ReidPool,
+    swap_entries,
+)
 from openptrack_py.tracking.identity.roster import Roster
 from openptrack_py.tracking.identity.swaps import SwapWatch
 from openptrack_py.tracking.neighbours import close_pairs, count_within
@@ -332,11 +337,7 @@ class AppearanceIdentity:
         if before.hgt is not None and before.hgt_ok is not None:
             had = before.hgt_ok[other]
             m.hgt[rows[had]] = before.hgt[other[had]]
-        na, nb = self.named.pop(a, None), self.named.pop(b, None)
-        if nb is not None:
-            self.named[a] = nb
-        if na is not None:
-            self.named[b] = na
+        swap_entries(self.named, a, b)
         self.reid.exchange(a, b)
         self.counters["swapped_back"] += 1
 

@@ -146,11 +146,7 @@ class ReidPool:
     def exchange(self, a: int, b: int) -> None:
         """Tracks ``a`` and ``b`` exchanged identities: their evidence goes with them."""
         for table in (self.reid_ev, self.resembled, self.since):
-            va, vb = table.pop(a, None), table.pop(b, None)
-            if vb is not None:
-                table[a] = vb
-            if va is not None:
-                table[b] = va
+            swap_entries(table, a, b)
 
     def follow_roster(self, mapping: np.ndarray) -> None:
         """Pooled evidence for names follows the roster (new name ``k`` was ``mapping[k]``)."""
@@ -403,6 +399,15 @@ def mean_evidence(evidence: Evidence | None) -> float:
     total, n, f_total, f_n = evidence
     colours = total / n if n >= MIN_REID_OBSERVATIONS else 0.0
     return colours + (f_total / f_n if f_n >= MIN_REID_OBSERVATIONS else 0.0)
+
+
+def swap_entries(table: dict, a: int, b: int) -> None:
+    """The entries of keys ``a`` and ``b`` change places (a missing one stays missing)."""
+    va, vb = table.pop(a, None), table.pop(b, None)
+    if vb is not None:
+        table[a] = vb
+    if va is not None:
+        table[b] = va
 
 
 def remap(values: np.ndarray, mapping: np.ndarray) -> np.ndarray:
