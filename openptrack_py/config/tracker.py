@@ -192,6 +192,19 @@ class TrackerConfig(StrictModel):
         track left on a static false positive, cannot live on a confident false
         detection now and then, while a person seen again after an occlusion regains
         support within a few frames.
+    keepalive_per_sensor : bool
+        Beside other confirmed tracks (within ``confirm_still_clearance_m``), a
+        confident detection also keeps a track alive while the detecting sensor's own
+        support of it holds (``keepalive_min_support``), counted over that sensor's
+        frames in which it detected each of those tracks too: a child standing beside
+        another, seen well by the one sensor the neighbour does not hide them from,
+        keeps their track although the sensors the neighbour hides them from pull the
+        track's support down. A second track on one person's offset or split view
+        never gains such support: in the frames that feed it the sensor did not detect
+        the person's own track too. Nor does a detection that could have been another
+        track's (in another's gate, or not alone in its own): where the sensors are
+        noisy or a lost track's gate is wide, the rule steps aside. Off by default
+        (docs/evaluation.md).
     occlusion_aware_support : bool
         A sensor's frames in which a track is hidden behind a person it detected (on the
         line of sight from where the ranges of its detections place it, below that
@@ -324,6 +337,7 @@ class TrackerConfig(StrictModel):
     merge_distinct_sensors: int = Field(1, ge=1, le=16)
     support_rate: float = Field(0.1, gt=0.0, le=1.0)
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
+    keepalive_per_sensor: bool = False
     occlusion_aware_support: bool = False
     unseen_stop_s: float = Field(1.0, ge=0.0, le=60.0)
     shared_noise_factor: float = Field(10.0, ge=1.0, le=100.0)

@@ -122,6 +122,7 @@ def new_rows(
         "evidence": np.full(n, params.evidence_per_hit),
         "sensor_hit_t": hit_t,
         "sensor_evidence": np.where(np.isfinite(hit_t), params.evidence_per_hit, 0.0),
+        "sensor_support": np.zeros((n, SENSOR_SLOTS)),
     }
 
 
@@ -133,7 +134,8 @@ def update_support(
     t: float,
     params: TrackerParams,
     hidden: np.ndarray | None = None,
-) -> None:
+    certain: np.ndarray | None = None,
+) -> np.ndarray:
     """Tracks ``expected`` to be seen (and those hit) gain support and evidence if hit.
 
     Support moves toward hit/miss. Evidence adds the log-likelihood ratio of a hit or of
@@ -148,10 +150,13 @@ def update_support(
     """
     hit = np.zeros(len(tb), dtype=bool)
     hit[hit_rows] = True
+    slot = sensor_slot(sensor_index)
+    keepalive = tb.support[hit_rows].copy()
+    beside = params.keepalive_beside_m > 0
+    own = tb.sensor_support[hit_rows, slot].copy() if beside else keepalive
     visible = np.ones(len(tb), dtype=bool) if hidden is None else ~hidden
     expected = (expected | hit) & visible
     tb.support[expected] += params.support_rate * (hit[expected] - tb.support[expected])
-    slot = sensor_slot(sensor_index)
     recent = t - tb.sensor_hit_t[:, slot] <= params.evidence_memory_s
     counted = (hit | recent) & visible
     tb.evidence[counted] += np.where(
@@ -160,6 +165,52 @@ def update_support(
     if params.sensor_evidence:
         _sensor_evidence(tb, hit, counted, slot, params)
     tb.sensor_hit_t[hit, slot] = t
+    if beside:
+        sure = hit.copy()
+        if certain is not None:
+            sure[:] = False
+            sure[certain] = True
+        moved = _sensor_support(tb, hit, sure, expected, slot, params)[hit_rows]
+        keepalive[moved] = np.maximum(keepalive[moved], own[moved])
+    return keepalive
+
+
+def _sensor_support(
+    tb: TrackTable,
+    hit: np.ndarray,
+    sure: np.ndarray,
+    expected: np.ndarray,
+    slot: int,
+    params: TrackerParams,
+) -> np.ndarray:
+    """One sensor's frame moves its own support of confirmed tracks.
+
+    Beside other confirmed tracks (within ``params.keepalive_beside_m``) the frame
+    counts only if the sensor detected all of them in it: where it saw everyone
+    around, whether it saw this track too says whether it sees this person (a
+    neighbour hides them from it, or not). A person's second track, fed by one sensor's
+    offset or split view, never gains such support: that sensor's frames that feed it
+    did not also detect the person's own track beside it. Nor does a hit that was not
+    ``sure`` (its detection could have been another track's, or the track could have
+    taken another: a lost track's wide gate among people). Away from others every
+    frame counts, so a track the sensor stopped seeing (a false positive that ended,
+    a person who left) loses the support it had. Returns the mask of tracks moved
+    beside others (where that support may keep a track alive).
+    """
+    rows = np.flatnonzero(expected & tb.confirmed)
+    beside_moved = np.zeros(len(tb), dtype=bool)
+    if not len(rows):
+        return beside_moved
+    xy, r = tb.x[rows, 0:2], params.keepalive_beside_m
+    beside = count_within(xy, tb.x[tb.confirmed, 0:2], r) - 1  # not itself
+    missed = count_within(xy, tb.x[tb.confirmed & ~hit, 0:2], r) - ~hit[rows]
+    counts = ((beside == 0) | (missed == 0)) & (sure[rows] | ~hit[rows])
+    moved = rows[counts]
+    tb.sensor_support[moved, slot] += params.support_rate * (
+        hit[moved] - tb.sensor_support[moved, slot]
+    )
+    beside_moved[rows[counts & (beside > 0)]] = True
+    return beside_moved
 
 
 def _sensor_evidence(
@@ -228,6 +279,7 @@ def fold_into(tb: TrackTable, keep: np.ndarray, drop: np.ndarray) -> None:
     tb.evidence[keep] = np.maximum(tb.evidence[keep], tb.evidence[drop])
     tb.sensor_hit_t[keep] = np.maximum(tb.sensor_hit_t[keep], tb.sensor_hit_t[drop])
     tb.sensor_evidence[keep] = np.maximum(tb.sensor_evidence[keep], tb.sensor_evidence[drop])
+    tb.sensor_support[keep] = np.maximum(tb.sensor_support[keep], tb.sensor_support[drop])
     tb.support[keep] = np.maximum(tb.support[keep], tb.support[drop])
     tb.confidence[keep] = np.maximum(tb.confidence[keep], tb.confidence[drop])
     _remove(tb, drop)

@@ -88,6 +88,11 @@ class TrackerParams:
         Within this distance of confirmed tracks, a sensor's frame counts toward a
         tentative track's own evidence from that sensor only if the sensor detected each
         of them in it too (one blob more than the people tracked there).
+    keepalive_beside_m : float
+        Within this distance of other confirmed tracks, a confirmed track is also kept
+        alive by a sensor's detection while that sensor's own support of it
+        (``TrackTable.sensor_support``, over its frames that detected each of them too)
+        is at least ``keepalive_min_support`` (0: never).
     """
 
     detector_weight: float = -1.0
@@ -118,6 +123,7 @@ class TrackerParams:
     evidence_memory_s: float = 0.5
     sensor_evidence: bool = False
     co_detection_m: float = 0.0
+    keepalive_beside_m: float = 0.0
 
     def __post_init__(self) -> None:
         if self.late_policy not in ("replay", "drop"):

@@ -244,6 +244,10 @@ class TrackTable:
         ``(n, SENSOR_SLOTS)`` each sensor's own part of ``evidence`` for a tentative
         track, counting, beside confirmed tracks, only the frames in which the sensor
         detected each of them too (see ``lifecycle``); kept only when asked for.
+    sensor_support : ndarray
+        ``(n, SENSOR_SLOTS)`` each sensor's own running hit rate of a confirmed track
+        beside other confirmed tracks, over the sensor's frames that detected each of
+        them too (see ``bookkeeping.update_support``); kept only when asked for.
     """
 
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
@@ -267,18 +271,21 @@ class TrackTable:
     evidence: np.ndarray = field(default_factory=lambda: np.zeros(0))
     sensor_hit_t: np.ndarray = field(default_factory=lambda: np.zeros((0, SENSOR_SLOTS)))
     sensor_evidence: np.ndarray = field(default_factory=lambda: np.zeros((0, SENSOR_SLOTS)))
+    sensor_support: np.ndarray = field(default_factory=lambda: np.zeros((0, SENSOR_SLOTS)))
 
     COLUMNS = (
         "ids", "x", "cov", "z", "height", "confidence", "first_seen", "last_seen", "hits",
         "confirmed", "hist_t", "hist_xy", "support", "birth_xy", "birth_n", "recent_xy",
         "last_sensor", "multi_t", "evidence", "sensor_hit_t", "sensor_evidence",
+        "sensor_support",
     )  # fmt: skip
 
     def __setstate__(self, state: dict[str, np.ndarray]) -> None:
-        # a table pickled (checkpointed) before the per-sensor evidence was kept
+        # a table pickled (checkpointed) before the per-sensor columns were kept
         self.__dict__.update(state)
-        if "sensor_evidence" not in state:
-            self.sensor_evidence = np.zeros((len(self.ids), SENSOR_SLOTS))
+        for name in ("sensor_evidence", "sensor_support"):
+            if name not in state:
+                setattr(self, name, np.zeros((len(self.ids), SENSOR_SLOTS)))
 
     def __len__(self) -> int:
         return len(self.ids)

@@ -376,15 +376,12 @@ class Tracker:
         )
         slow_approaches(tb, gated, dt, self.params.approach_stop_s)
         keep_apart(tb, *self.merger.distinct_rows(tb, t), self.params.person_gap_m)
-        prior_support = tb.support[rows].copy()
-        self._update_support(rows, dets.sensor_id, t)
+        # pairs motion alone made certain: each the only one in the other's gate
+        certain = (gated[own_rows].sum(axis=1) == 1) & (gated[:, own_cols].sum(axis=0) == 1)
+        prior_support = self._update_support(rows, dets.sensor_id, t, own_rows[certain])
         index = self.sensor_index.setdefault(dets.sensor_id, len(self.sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
         self.merger.observe(tb, own_rows, t, r[own_rows, own_cols, 0:2, 0:2], sensor_slot(index))
-        certain = None
-        if self.identity.needs_looks:
-            # pairs motion alone made certain: each the only one in the other's gate
-            certain = (gated[own_rows].sum(axis=1) == 1) & (gated[:, own_cols].sum(axis=0) == 1)
         self.identity.observe(tb, own_rows, own_cols, dets, t, certain)
         assigned[cols] = True
         self.sensors.observe_frame(dets.sensor_id, int((~assigned).sum()))
@@ -453,14 +450,18 @@ class Tracker:
             self.counters["tracks_deleted"] += int(gone.sum())
             tb.keep(~gone)
 
-    def _update_support(self, hit_rows: np.ndarray, sensor_id: str, t: float) -> None:
-        """Tracks this sensor should see (none hidden behind one it saw) gain or lose support."""
-        if len(self.table):
-            xy, twin = self.table.x[:, 0:2], self.params.occlusion_twin_m
-            expected = self.sensors.covers(sensor_id, xy)
-            hidden = self.sensors.hidden(sensor_id, xy, hit_rows, twin) if twin > 0 else None
-            index = self.sensor_index.setdefault(sensor_id, len(self.sensor_index))
-            update_support(self.table, hit_rows, expected, index, t, self.params, hidden)
+    def _update_support(
+        self, hit_rows: np.ndarray, sensor_id: str, t: float, certain: np.ndarray | None = None
+    ) -> np.ndarray:
+        """One sensor frame moves tracks' support; returns what keeps ``hit_rows`` alive."""
+        if not len(self.table):
+            return np.zeros(0)
+        xy, twin = self.table.x[:, 0:2], self.params.occlusion_twin_m
+        expected = self.sensors.covers(sensor_id, xy)
+        hidden = self.sensors.hidden(sensor_id, xy, hit_rows, twin) if twin > 0 else None
+        index = self.sensor_index.setdefault(sensor_id, len(self.sensor_index))
+        tb, params = self.table, self.params
+        return update_support(tb, hit_rows, expected, index, t, params, hidden, certain)
 
     def _merge(self, t: float) -> None:
         """Fold each track following the person of an older one (not one known apart) into it."""

@@ -101,17 +101,19 @@ def test_an_offset_view_of_one_person_beside_them_is_never_a_second_person(
     assert len(set().union(*near_first[int(4 / FRAME) :])) == 1
 
 
-def test_a_table_pickled_before_the_per_sensor_evidence_was_kept_loads() -> None:
+@pytest.mark.parametrize("column", ["sensor_evidence", "sensor_support"])
+def test_a_table_pickled_before_the_per_sensor_columns_were_kept_loads(column: str) -> None:
+    """Each sensor's own evidence (this rule) and own support (``keepalive_per_sensor``)."""
     table = TrackTable()
     table.append(**{name: getattr(table, name)[:0] for name in TrackTable.COLUMNS})
     state = dict(table.__dict__)
     state["ids"] = np.array([4, 9])
-    del state["sensor_evidence"]
+    del state[column]
     old = TrackTable.__new__(TrackTable)
     old.__setstate__(state)
     restored = pickle.loads(pickle.dumps(old))
-    assert restored.sensor_evidence.shape == (2, SENSOR_SLOTS)
-    assert not restored.sensor_evidence.any()
+    assert getattr(restored, column).shape == (2, SENSOR_SLOTS)
+    assert not getattr(restored, column).any()
 
 
 @pytest.mark.parametrize("seed", [0, 1], ids=["seed0", "seed1"])
