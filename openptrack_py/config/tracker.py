@@ -195,8 +195,9 @@ class TrackerConfig(StrictModel):
     keepalive_per_sensor : bool
         Beside other confirmed tracks (within ``confirm_still_clearance_m``), a
         confident detection also keeps a track alive while the detecting sensor's own
-        support of it holds (``keepalive_min_support``), counted over that sensor's
-        frames in which it detected each of those tracks too: a child standing beside
+        support of it holds (``keepalive_min_support``), counted there over that
+        sensor's frames in which it detected each of those tracks too (away from
+        others, over every frame the sensor covers the track): a child standing beside
         another, seen well by the one sensor the neighbour does not hide them from,
         keeps their track although the sensors the neighbour hides them from pull the
         track's support down. A second track on one person's offset or split view

@@ -91,8 +91,8 @@ class TrackerParams:
     keepalive_beside_m : float
         Within this distance of other confirmed tracks, a confirmed track is also kept
         alive by a sensor's detection while that sensor's own support of it
-        (``TrackTable.sensor_support``, over its frames that detected each of them too)
-        is at least ``keepalive_min_support`` (0: never).
+        (``TrackTable.sensor_support``; there over its frames that detected each of them
+        too) is at least ``keepalive_min_support`` (0: never).
     """
 
     detector_weight: float = -1.0

@@ -245,9 +245,10 @@ class TrackTable:
         track, counting, beside confirmed tracks, only the frames in which the sensor
         detected each of them too (see ``lifecycle``); kept only when asked for.
     sensor_support : ndarray
-        ``(n, SENSOR_SLOTS)`` each sensor's own running hit rate of a confirmed track
-        beside other confirmed tracks, over the sensor's frames that detected each of
-        them too (see ``bookkeeping.update_support``); kept only when asked for.
+        ``(n, SENSOR_SLOTS)`` each sensor's own running hit rate of a confirmed track,
+        over the sensor's frames that can tell: beside other confirmed tracks only
+        those that detected each of them too, away from others every frame (see
+        ``bookkeeping.update_support``); kept only when asked for.
     """
 
     ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
