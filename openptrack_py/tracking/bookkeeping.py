@@ -152,8 +152,7 @@ def update_support(
     hit[hit_rows] = True
     slot = sensor_slot(sensor_index)
     keepalive = tb.support[hit_rows].copy()
-    beside = params.keepalive_beside_m > 0
-    own = tb.sensor_support[hit_rows, slot].copy() if beside else keepalive
+    own = tb.sensor_support[hit_rows, slot].copy() if params.keepalive_beside_m > 0 else None
     visible = np.ones(len(tb), dtype=bool) if hidden is None else ~hidden
     expected = (expected | hit) & visible
     tb.support[expected] += params.support_rate * (hit[expected] - tb.support[expected])
@@ -165,10 +164,10 @@ def update_support(
     if params.sensor_evidence:
         _sensor_evidence(tb, hit, counted, slot, params)
     tb.sensor_hit_t[hit, slot] = t
-    if beside:
-        sure = hit.copy()
+    if own is not None:
+        sure = hit
         if certain is not None:
-            sure[:] = False
+            sure = np.zeros(len(tb), dtype=bool)
             sure[certain] = True
         moved = _sensor_support(tb, hit, sure, expected, slot, params)[hit_rows]
         keepalive[moved] = np.maximum(keepalive[moved], own[moved])
@@ -201,9 +200,9 @@ def _sensor_support(
     beside_moved = np.zeros(len(tb), dtype=bool)
     if not len(rows):
         return beside_moved
-    xy, r = tb.x[rows, 0:2], params.keepalive_beside_m
-    beside = count_within(xy, tb.x[tb.confirmed, 0:2], r) - 1  # not itself
-    missed = count_within(xy, tb.x[tb.confirmed & ~hit, 0:2], r) - ~hit[rows]
+    r = params.keepalive_beside_m
+    beside = count_within(tb.x[rows, 0:2], tb.x[tb.confirmed, 0:2], r) - 1  # not itself
+    missed = _undetected_beside(tb, rows, hit, r)
     counts = ((beside == 0) | (missed == 0)) & (sure[rows] | ~hit[rows])
     moved = rows[counts]
     tb.sensor_support[moved, slot] += params.support_rate * (
@@ -229,11 +228,16 @@ def _sensor_evidence(
     if not len(rows):
         return
     if params.co_detection_m > 0:
-        missed = tb.x[tb.confirmed & ~hit, 0:2]  # confirmed tracks this frame did not detect
-        rows = rows[count_within(tb.x[rows, 0:2], missed, params.co_detection_m) == 0]
+        rows = rows[_undetected_beside(tb, rows, hit, params.co_detection_m) == 0]
     tb.sensor_evidence[rows, slot] += np.where(
         hit[rows], params.evidence_per_hit, params.evidence_per_miss
     )
+
+
+def _undetected_beside(tb: TrackTable, rows: np.ndarray, hit: np.ndarray, r: float) -> np.ndarray:
+    """How many other confirmed tracks within ``r`` of each of ``rows`` this frame missed."""
+    missed = count_within(tb.x[rows, 0:2], tb.x[tb.confirmed & ~hit, 0:2], r)
+    return missed - (tb.confirmed[rows] & ~hit[rows])  # not itself
 
 
 def _first_hit(n: int, sensor_index: int, t: float) -> np.ndarray:

@@ -376,9 +376,11 @@ class Tracker:
         )
         slow_approaches(tb, gated, dt, self.params.approach_stop_s)
         keep_apart(tb, *self.merger.distinct_rows(tb, t), self.params.person_gap_m)
-        # pairs motion alone made certain: each the only one in the other's gate
-        certain = (gated[own_rows].sum(axis=1) == 1) & (gated[:, own_cols].sum(axis=0) == 1)
-        prior_support = self._update_support(rows, dets.sensor_id, t, own_rows[certain])
+        certain = None  # pairs motion alone made certain: each the only one in the other's gate
+        if self.identity.needs_looks or self.params.keepalive_beside_m > 0:
+            certain = (gated[own_rows].sum(axis=1) == 1) & (gated[:, own_cols].sum(axis=0) == 1)
+        sure = None if certain is None else own_rows[certain]
+        prior_support = self._update_support(rows, dets.sensor_id, t, sure)
         index = self.sensor_index.setdefault(dets.sensor_id, len(self.sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
         self.merger.observe(tb, own_rows, t, r[own_rows, own_cols, 0:2, 0:2], sensor_slot(index))
@@ -451,7 +453,7 @@ class Tracker:
             tb.keep(~gone)
 
     def _update_support(
-        self, hit_rows: np.ndarray, sensor_id: str, t: float, certain: np.ndarray | None = None
+        self, hit_rows: np.ndarray, sensor_id: str, t: float, sure: np.ndarray | None = None
     ) -> np.ndarray:
         """One sensor frame moves tracks' support; returns what keeps ``hit_rows`` alive."""
         if not len(self.table):
@@ -460,8 +462,7 @@ class Tracker:
         expected = self.sensors.covers(sensor_id, xy)
         hidden = self.sensors.hidden(sensor_id, xy, hit_rows, twin) if twin > 0 else None
         index = self.sensor_index.setdefault(sensor_id, len(self.sensor_index))
-        tb, params = self.table, self.params
-        return update_support(tb, hit_rows, expected, index, t, params, hidden, certain)
+        return update_support(self.table, hit_rows, expected, index, t, self.params, hidden, sure)
 
     def _merge(self, t: float) -> None:
         """Fold each track following the person of an older one (not one known apart) into it."""
