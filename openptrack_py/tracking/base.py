@@ -168,10 +168,13 @@ class Merger(Protocol):
         t: float,
         noise: np.ndarray | None = None,
         sensor: int = 0,
+        apart: np.ndarray | None = None,
     ) -> None:
         """Tracks ``rows`` were all detected in one frame of ``sensor`` (its slot) at ``t``.
 
-        ``noise`` is each row's measurement covariance ``(len(rows), 2, 2)``.
+        ``noise`` is each row's measurement covariance ``(len(rows), 2, 2)``; ``apart``
+        (a mask over ``rows``, all when ``None``) the rows whose detections prove them
+        to be people other than the rest.
         """
 
     def merge(self, table: TrackTable, t: float) -> list[tuple[int, int]]:

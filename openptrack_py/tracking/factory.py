@@ -103,6 +103,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             sensor_evidence=cfg.confirm_still_per_sensor,
             co_detection_m=cfg.confirm_still_clearance_m if cfg.confirm_still_per_sensor else 0.0,
             keepalive_beside_m=cfg.confirm_still_clearance_m if cfg.keepalive_per_sensor else 0.0,
+            merge_proof_unambiguous=cfg.merge_proof_unambiguous,
         ),
     )
 

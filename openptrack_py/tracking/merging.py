@@ -153,13 +153,18 @@ class TrackMerger:
         t: float,
         noise: np.ndarray | None = None,
         sensor: int = 0,
+        apart: np.ndarray | None = None,
     ) -> None:
         """Tracks ``rows`` were detected in one frame of ``sensor``: it saw close pairs apart.
 
         ``sensor`` is the sensor's slot (:func:`~openptrack_py.tracking.state.sensor_slot`).
 
         ``noise`` ``(len(rows), 2, 2)`` is each row's detection's measurement covariance,
-        averaged into the track's measurement variance.
+        averaged into the track's measurement variance. ``apart`` (a mask over ``rows``)
+        keeps only the rows whose detections prove them apart from the others (all when
+        ``None``): where gates overlap, a detection could have been another track's, and
+        a person's second track that took a neighbour's or a stray detection beside the
+        person's own would otherwise count as a second person.
         """
         if self.after_s <= 0:
             return
@@ -168,6 +173,8 @@ class TrackMerger:
             for i, v in zip(table.ids[rows].tolist(), var.tolist(), strict=True):
                 old = self._noise_var.get(i)
                 self._noise_var[i] = v if old is None else old + self.noise_rate * (v - old)
+        if apart is not None:
+            rows = rows[apart]
         if len(rows) < 2:
             return
         ii, jj = close_pairs(
@@ -402,6 +409,7 @@ class NoMerging:
         t: float,
         noise: np.ndarray | None = None,
         sensor: int = 0,
+        apart: np.ndarray | None = None,
     ) -> None:
         """Nothing to remember."""
 

@@ -93,6 +93,10 @@ class TrackerParams:
         alive by a sensor's detection while that sensor's own support of it
         (``TrackTable.sensor_support``; there over its frames that detected each of them
         too) is at least ``keepalive_min_support`` (0: never).
+    merge_proof_unambiguous : bool
+        A sensor frame proves the tracks it updated to be two people (for merging, see
+        :class:`~openptrack_py.tracking.merging.TrackMerger`) only through detections
+        that were each alone in their track's gate and in no other track's gate.
     """
 
     detector_weight: float = -1.0
@@ -124,6 +128,12 @@ class TrackerParams:
     sensor_evidence: bool = False
     co_detection_m: float = 0.0
     keepalive_beside_m: float = 0.0
+    merge_proof_unambiguous: bool = False
+
+    @property
+    def needs_certain_pairs(self) -> bool:
+        """Whether a step must tell which of its pairs motion alone made certain."""
+        return self.keepalive_beside_m > 0 or self.merge_proof_unambiguous
 
     def __post_init__(self) -> None:
         if self.late_policy not in ("replay", "drop"):

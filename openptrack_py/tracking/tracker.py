@@ -151,10 +151,8 @@ class Tracker:
         self.ukf = UnscentedKalmanFilter(MerweSigmaPoints(4))
         self.table = TrackTable()
         self.time: float | None = None
-        self.max_id = 0
-        self.max_published_id = 0
-        self.seq = 0
-        self.frame_id = "world"
+        self.max_id = self.max_published_id = 0
+        self.seq, self.frame_id = 0, "world"
         self.counters: dict[str, int] = dict.fromkeys(COUNTERS, 0)
         self.sensor_index: dict[str, int] = {}  # sensor id -> its column in the table
         self._stateful_cache: tuple[tuple[int, ...], list[bool]] | None = None
@@ -377,13 +375,16 @@ class Tracker:
         slow_approaches(tb, gated, dt, self.params.approach_stop_s)
         keep_apart(tb, *self.merger.distinct_rows(tb, t), self.params.person_gap_m)
         certain = None  # pairs motion alone made certain: each the only one in the other's gate
-        if self.identity.needs_looks or self.params.keepalive_beside_m > 0:
+        if self.identity.needs_looks or self.params.needs_certain_pairs:
             certain = (gated[own_rows].sum(axis=1) == 1) & (gated[:, own_cols].sum(axis=0) == 1)
         sure = None if certain is None else own_rows[certain]
         prior_support = self._update_support(rows, dets.sensor_id, t, sure)
         index = self.sensor_index.setdefault(dets.sensor_id, len(self.sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
-        self.merger.observe(tb, own_rows, t, r[own_rows, own_cols, 0:2, 0:2], sensor_slot(index))
+        apart = certain if self.params.merge_proof_unambiguous else None
+        self.merger.observe(
+            tb, own_rows, t, r[own_rows, own_cols, :2, :2], sensor_slot(index), apart
+        )
         self.identity.observe(tb, own_rows, own_cols, dets, t, certain)
         assigned[cols] = True
         self.sensors.observe_frame(dets.sensor_id, int((~assigned).sum()))
