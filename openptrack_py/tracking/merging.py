@@ -122,6 +122,9 @@ class TrackMerger:
         # replaced, never changed, so a snapshot may share them)
         self._distinct: dict[tuple[int, int], float] = {}
         self._apart_by: dict[tuple[int, int], dict[int, float]] = {}
+        # only where ``observe`` is told which rows a frame proves apart: pairs any frame
+        # detected together lately, kept a body's depth apart without proving two people
+        self._together: dict[tuple[int, int], float] = {}
 
     def snapshot(self) -> tuple[dict[Any, Any], ...]:
         """Pair timers, the tracks' noise and who saw pairs apart (independent copies)."""
@@ -131,6 +134,7 @@ class TrackMerger:
             dict(self._distinct),
             dict(self._noise_var),
             dict(self._apart_by),
+            dict(self._together),
         )
 
     def restore(self, state: tuple[dict[Any, Any], ...]) -> None:
@@ -138,11 +142,12 @@ class TrackMerger:
 
         One taken before the tracks' noise was kept has none; one taken before the
         sensors that saw a pair apart were kept has none either (each pair then counts
-        as seen apart by one sensor).
+        as seen apart by one sensor); nor has one taken before the pairs merely detected
+        together were kept.
         """
-        dicts = [dict(d) for d in state] + [{} for _ in range(5 - len(state))]
+        dicts = [dict(d) for d in state] + [{} for _ in range(6 - len(state))]
         self._close_since, self._last_close, self._distinct, self._noise_var = dicts[:4]
-        self._apart_by = dicts[4]
+        self._apart_by, self._together = dicts[4], dicts[5]
         if len(state) < 5:
             self._apart_by = {pair: {-1: s} for pair, s in self._distinct.items()}
 
@@ -164,7 +169,9 @@ class TrackMerger:
         keeps only the rows whose detections prove them apart from the others (all when
         ``None``): where gates overlap, a detection could have been another track's, and
         a person's second track that took a neighbour's or a stray detection beside the
-        person's own would otherwise count as a second person.
+        person's own would otherwise count as a second person and never be merged. All
+        the rows still count as detected together, which keeps two tracks a body's depth
+        apart (:meth:`distinct_rows`) without proving them two people.
         """
         if self.after_s <= 0:
             return
@@ -174,20 +181,30 @@ class TrackMerger:
                 old = self._noise_var.get(i)
                 self._noise_var[i] = v if old is None else old + self.noise_rate * (v - old)
         if apart is not None:
+            for pair in self._close_ids(table, rows):
+                self._together[pair] = t
             rows = rows[apart]
-        if len(rows) < 2:
-            return
-        ii, jj = close_pairs(
-            table.x[rows, 0:2], 2.0 * self._reach(self._track_var(table.ids[rows]))
-        )
-        for a, b in zip(table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist(), strict=True):
-            pair = (a, b) if a < b else (b, a)
+        for pair in self._close_ids(table, rows):
             self._distinct[pair] = t
             if self.distinct_sensors > 1:
                 self._apart_by[pair] = {**self._apart_by.get(pair, {}), sensor: t}
 
+    def _close_ids(self, table: TrackTable, rows: np.ndarray) -> list[tuple[int, int]]:
+        """Id pairs (lower first) of ``rows`` near enough to be confused."""
+        if len(rows) < 2:
+            return []
+        ii, jj = close_pairs(
+            table.x[rows, 0:2], 2.0 * self._reach(self._track_var(table.ids[rows]))
+        )
+        ids_i, ids_j = table.ids[rows[ii]].tolist(), table.ids[rows[jj]].tolist()
+        return [(a, b) if a < b else (b, a) for a, b in zip(ids_i, ids_j, strict=True)]
+
     def distinct_rows(self, table: TrackTable, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Row pairs ``(a, b)`` of tracks known to be two people at ``t``."""
+        """Row pairs ``(a, b)`` of tracks to keep a body's depth apart at ``t``.
+
+        Those known to be two people, and (where ``observe`` was told which rows a frame
+        proves apart, and one sensor's frame is proof) those detected together lately.
+        """
         row_of = {int(i): r for r, i in enumerate(table.ids.tolist())}
         pairs = [
             p
@@ -197,6 +214,14 @@ class TrackMerger:
         out = np.array([(row_of[a], row_of[b]) for a, b in pairs], dtype=np.intp).reshape(-1, 2)
         if self.distinct_sensors > 1:
             out = out[self._enough_sensors(table, t, pairs, out)]
+        elif self._together:
+            known = set(pairs)
+            more = [
+                (row_of[p[0]], row_of[p[1]])
+                for p, s in self._together.items()
+                if t - s < self.distinct_s and p not in known and p[0] in row_of and p[1] in row_of
+            ]
+            out = np.concatenate([out, np.array(more, dtype=np.intp).reshape(-1, 2)])
         return out[:, 0], out[:, 1]
 
     def _enough_sensors(
@@ -325,6 +350,7 @@ class TrackMerger:
             self._last_close.pop(pair, None)
             self._close_since.pop(pair, None)
         self._distinct = {p: s for p, s in self._distinct.items() if t - s < self.distinct_s}
+        self._together = {p: s for p, s in self._together.items() if t - s < self.distinct_s}
         self._apart_by = {p: s for p, s in self._apart_by.items() if p in self._distinct}
         if self.distinct_sensors > 1:
             rows = np.array([v[0:2] for v in close.values()], dtype=np.intp).reshape(-1, 2)
