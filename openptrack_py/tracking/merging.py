@@ -22,7 +22,12 @@ through :func:`~openptrack_py.tracking.blobs.keep_apart`, pushes it off the pers
 where others see the person whole. The price: two people close together whom one
 sensor sees apart while the others see them as one blob may be merged, and in a dense
 crowd that costs more identities than the splits do; so the default, 1, takes any one
-sensor's frame as proof.
+sensor's frame as proof. Where detections are noisy, association gates overlap, and
+the frame that saw a person's two tracks apart may have given the second one a
+neighbour's or a stray detection: told which detections were unambiguous (each alone in
+its track's gate and in no other's; the tracker's ``merge_proof_unambiguous``), the
+merger takes only those as proof, while every pair a frame detected together is still
+kept a body's depth apart (:meth:`TrackMerger.distinct_rows`).
 
 How close is close depends on how noisy the detections are: each sensor's errors pull
 the track it feeds its own way, so two tracks of one person drift apart by about the

@@ -94,9 +94,10 @@ class TrackerParams:
         (``TrackTable.sensor_support``; there over its frames that detected each of them
         too) is at least ``keepalive_min_support`` (0: never).
     merge_proof_unambiguous : bool
-        A sensor frame proves the tracks it updated to be two people (for merging, see
-        :class:`~openptrack_py.tracking.merging.TrackMerger`) only through detections
-        that were each alone in their track's gate and in no other track's gate.
+        A sensor frame proves the tracks it updated to be two people (so that they are
+        not merged, see :class:`~openptrack_py.tracking.merging.TrackMerger`) only through
+        detections that were each alone in their track's gate and in no other track's
+        gate; all of them still count as detected together (kept a body's depth apart).
     """
 
     detector_weight: float = -1.0
