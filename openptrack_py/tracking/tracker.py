@@ -381,9 +381,9 @@ class Tracker:
         prior_support = self._update_support(rows, dets.sensor_id, t, sure)
         index = self.sensor_index.setdefault(dets.sensor_id, len(self.sensor_index))
         absorb(tb, rows, cols, dets, t, prior_support, index, self.params)
-        apart = certain if self.params.merge_proof_unambiguous else None
+        apart = (certain,) if self.params.merge_proof_unambiguous else ()  # older mergers: none
         self.merger.observe(
-            tb, own_rows, t, r[own_rows, own_cols, :2, :2], sensor_slot(index), apart
+            tb, own_rows, t, r[own_rows, own_cols, :2, :2], sensor_slot(index), *apart
         )
         self.identity.observe(tb, own_rows, own_cols, dets, t, certain)
         assigned[cols] = True
