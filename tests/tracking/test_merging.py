@@ -45,7 +45,7 @@ def test_a_duplicate_whose_support_has_fallen_is_still_merged() -> None:
     for t in np.arange(0.0, 1.0, 0.1):
         table.sensor_hit_t[1, 3] = t
         merged += merger.merge(table, t)
-    assert merged and set(merged) == {(0, 1)}  # the table is not changed here
+    assert merged == [(0, 1)]
     merger = TrackMerger(distance_m=0.35, after_s=0.5, fresh_s=0.3)
     table.sensor_hit_t[1] = -10.0
     assert all(merger.merge(table, t) == [] for t in np.arange(0.0, 2.0, 0.1))
@@ -83,7 +83,7 @@ def test_where_several_sensors_see_a_pair_one_sensors_frames_do_not_prove_two_pe
         merger.observe(table, np.array([0, 1]), t, sensor=2)
         merged += merger.merge(table, t)
         assert [r.tolist() for r in merger.distinct_rows(table, t)] == [[], []]
-    assert merged and set(merged) == {(0, 1)}  # the table is not changed here
+    assert merged == [(0, 1)]
     # a second sensor seeing them apart makes them two people
     merger = TrackMerger(distance_m=0.35, after_s=0.5, distinct_sensors=2)
     for t in np.arange(0.0, 2.0, 0.1):
