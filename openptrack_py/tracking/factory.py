@@ -32,6 +32,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
     measurement: MeasurementModel = position
     if cfg.velocity_in_motion_term:
         measurement = PositionVelocityMeasurement(position, cfg.velocity_sigma_mps)
+    still = math.log(1.0 / cfg.confirm_still_error) if cfg.confirm_still_error > 0 else math.inf
     return Tracker(
         motion=ConstantVelocity(cfg.acceleration_variance),
         measurement=measurement,
@@ -49,11 +50,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             still_clearance_m=cfg.confirm_still_clearance_m,
             still_per_sensor=cfg.confirm_still_per_sensor,
             one_sensor_min_age_s=cfg.confirm_one_sensor_min_age_s,
-            still_evidence=(
-                math.log(1.0 / cfg.confirm_still_error)
-                if cfg.confirm_still_error > 0
-                else math.inf
-            ),
+            still_evidence=still,
         ),
         deleter=TimeDeleter(cfg.sec_before_fake, cfg.sec_before_old, cfg.tentative_timeout_s),
         sensors=OnlineSensorModel(
