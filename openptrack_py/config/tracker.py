@@ -187,14 +187,16 @@ class TrackerConfig(StrictModel):
         scenes but lost identities in dense ones (docs/evaluation.md). Nothing is
         recorded with ``merge_after_s`` 0.
     merge_proof_unambiguous : bool
-        A sensor frame proves two tracks to be two people (so that they are never merged)
-        only through detections that were each alone in their track's association gate
-        and in no other track's gate; the tracks it detected together are still kept a
-        body's depth apart (``person_gap_m``). Where detections are noisy, gates overlap
-        and a person's second track (started before the noise was learned, or by a burst
-        of outliers) takes a neighbour's or a stray detection in the same frame as the
-        person's own: by the default rule that frame proves two people for 5 s, renewed
-        while the noise lasts, and the second track is never merged. Off by default
+        A sensor frame proves two tracks to be two people (so that they are never
+        merged) only through detections that were each alone in their track's
+        association gate and in no other track's gate; the tracks it detected together
+        are still kept a body's depth apart (``person_gap_m``; with
+        ``merge_distinct_sensors`` 1, the default: with more, only that rule's proof
+        keeps tracks apart). Where detections are noisy, gates overlap and a person's
+        second track (started before the noise was learned, or by a burst of outliers)
+        takes a neighbour's or a stray detection in the same frame as the person's own:
+        by the default rule that frame proves two people for 5 s, renewed while the
+        noise lasts, and the second track is never merged. Off by default
         (docs/evaluation.md, "At four times the noise").
     keepalive_min_support : float
         A confident detection keeps a track alive only while the track's support (before

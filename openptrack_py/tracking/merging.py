@@ -174,9 +174,10 @@ class TrackMerger:
         keeps only the rows whose detections prove them apart from the others (all when
         ``None``): where gates overlap, a detection could have been another track's, and
         a person's second track that took a neighbour's or a stray detection beside the
-        person's own would otherwise count as a second person and never be merged. All
-        the rows still count as detected together, which keeps two tracks a body's depth
-        apart (:meth:`distinct_rows`) without proving them two people.
+        person's own would otherwise count as a second person and never be merged. With
+        ``distinct_sensors`` 1 all the rows still count as detected together, which keeps
+        two tracks a body's depth apart (:meth:`distinct_rows`) without proving them two
+        people.
         """
         if self.after_s <= 0:
             return
@@ -186,8 +187,9 @@ class TrackMerger:
                 old = self._noise_var.get(i)
                 self._noise_var[i] = v if old is None else old + self.noise_rate * (v - old)
         if apart is not None:
-            for pair in self._close_ids(table, rows):
-                self._together[pair] = t
+            if self.distinct_sensors == 1:  # with more, only proof keeps tracks apart
+                for pair in self._close_ids(table, rows):
+                    self._together[pair] = t
             rows = rows[apart]
         for pair in self._close_ids(table, rows):
             self._distinct[pair] = t
