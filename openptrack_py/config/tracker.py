@@ -195,9 +195,10 @@ class TrackerConfig(StrictModel):
         keeps tracks apart). Where detections are noisy, gates overlap and a person's
         second track (started before the noise was learned, or by a burst of outliers)
         takes a neighbour's or a stray detection in the same frame as the person's own:
-        by the default rule that frame proves two people for 5 s, renewed while the
-        noise lasts, and the second track is never merged. Off by default
-        (docs/evaluation.md, "At four times the noise").
+        by the rule without this option that frame proves two people for 5 s, renewed
+        while the noise lasts, and the second track is never merged. On by default
+        (docs/evaluation.md, "At four times the noise"); off, any frame that detected
+        both tracks proves two people.
     keepalive_min_support : float
         A confident detection keeps a track alive only while the track's support (before
         that detection) is at least this: a lost track whose gate has grown wide, or a
@@ -348,7 +349,7 @@ class TrackerConfig(StrictModel):
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
     merge_by_noise: bool = True
     merge_distinct_sensors: int = Field(1, ge=1, le=16)
-    merge_proof_unambiguous: bool = False
+    merge_proof_unambiguous: bool = True
     support_rate: float = Field(0.1, gt=0.0, le=1.0)
     keepalive_min_support: float = Field(0.35, ge=0.0, le=1.0)
     keepalive_per_sensor: bool = False

@@ -129,7 +129,7 @@ class TrackerParams:
     sensor_evidence: bool = False
     co_detection_m: float = 0.0
     keepalive_beside_m: float = 0.0
-    merge_proof_unambiguous: bool = False
+    merge_proof_unambiguous: bool = True
 
     @property
     def needs_certain_pairs(self) -> bool:

@@ -149,6 +149,7 @@ class NeverMerge:
         t: float,
         noise: np.ndarray | None = None,
         sensor: int = 0,
+        apart: np.ndarray | None = None,
     ) -> None:
         pass
 
