@@ -162,6 +162,13 @@ class TrackerConfig(StrictModel):
         the calibration. The OpenPTrack paper reports 5-20 cm and 1-3 degrees before
         refinement (0.12 and 2 are its middle); a calibration refined from a walk or a
         checkerboard needs none.
+    align_from_twins : bool
+        Learn a misalignment larger than an association gate from *twins*: pairs of
+        tracks each fed by one sensor alone though both sensors see the place, walking
+        together at a steady separation. One pair may be two people walking together;
+        a rigid map of the floor that several distinct pairs agree on is the two
+        calibrations' disagreement, and both sensors' alignments are taught to meet
+        half-way (``tracking/twins.py``). Off by default.
     merge_distance_m : float
         Two confirmed tracks closer than this, moving alike, both being detected and
         never detected in one sensor frame together, follow one person.
@@ -344,6 +351,7 @@ class TrackerConfig(StrictModel):
     max_bias_m: float = Field(0.5, ge=0.0, le=5.0)
     calibration_sigma_m: float = Field(0.0, ge=0.0, le=2.0)
     calibration_sigma_deg: float = Field(0.0, ge=0.0, le=20.0)
+    align_from_twins: bool = False
     merge_distance_m: float = Field(0.45, ge=0.0, le=2.0)
     merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)

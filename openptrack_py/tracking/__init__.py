@@ -29,8 +29,9 @@ from openptrack_py.tracking.motion import ConstantVelocity
 from openptrack_py.tracking.ordering import ClockAligner, ReorderBuffer
 from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.pipeline import TrackingPipeline
-from openptrack_py.tracking.sensor_model import OnlineSensorModel, StaticSensorModel
+from openptrack_py.tracking.sensor_model import OnlineSensorModel
 from openptrack_py.tracking.state import DetectionArrays, TrackTable
+from openptrack_py.tracking.static_sensors import StaticSensorModel
 from openptrack_py.tracking.tracker import Tracker
 from openptrack_py.tracking.ukf import MerweSigmaPoints, UnscentedKalmanFilter
 

@@ -81,6 +81,17 @@ class RigidAlignment:
         self.sum_zz = keep * self.sum_zz + (z_raw**2).sum(axis=0)
         self.sum_zx = keep * self.sum_zx + z_raw.T @ x
 
+    def then(self, theta: float, shift: np.ndarray) -> None:
+        """Follow the map by a rigid move of the fused frame (``x -> R(theta) x + shift``).
+
+        The remembered targets move with it, so the pairs keep their weight.
+        """
+        rot = rotation(theta)
+        self.sum_x = rot @ self.sum_x + self.weight * shift
+        self.sum_zx = self.sum_zx @ rot.T + np.outer(self.sum_z, shift)
+        self.theta += theta
+        self.shift = rot @ self.shift + shift
+
     def fit(self) -> None:
         """Update the rotation and translation from the remembered pairs."""
         if self.weight <= 0:

@@ -157,6 +157,9 @@ class SensorModel(Protocol):
     def learn(self, updates: SensorUpdates) -> None:
         """Learn from one batch's unambiguous updates of confirmed tracks."""
 
+    def observe_tracks(self, table: TrackTable, t: float, names: list[str]) -> None:
+        """Learn from the tracks after a step (``names``: the sensors, by index)."""
+
 
 class Merger(Protocol):
     """Finds confirmed tracks that follow one person."""

@@ -23,6 +23,7 @@ from openptrack_py.tracking.motion import ConstantVelocity
 from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.sensor_model import OnlineSensorModel
 from openptrack_py.tracking.tracker import Tracker
+from openptrack_py.tracking.twins import TwinAligner
 
 
 def build_tracker(config: TrackerConfig | None = None) -> Tracker:
@@ -59,6 +60,7 @@ def build_tracker(config: TrackerConfig | None = None) -> Tracker:
             scale_bounds=(cfg.noise_scale_min, cfg.noise_scale_max),
             max_bias_m=cfg.max_bias_m,
             calibration_sigma=(cfg.calibration_sigma_m, cfg.calibration_sigma_deg),
+            twins=TwinAligner(max_shift_m=3.0 * cfg.max_bias_m) if cfg.align_from_twins else None,
         ),
         merger=TrackMerger(
             cfg.merge_distance_m,

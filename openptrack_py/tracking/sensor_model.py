@@ -48,7 +48,8 @@ the innovations of the confirmed tracks it updates:
   its sequence number), in whatever order batches are applied, so replays need not
   restore it.
 
-:class:`StaticSensorModel` learns nothing (every sensor as configured).
+:class:`~openptrack_py.tracking.static_sensors.StaticSensorModel` learns nothing (every
+sensor as configured).
 """
 
 from __future__ import annotations
@@ -61,7 +62,8 @@ from scipy.optimize import minimize_scalar
 
 from openptrack_py.tracking.alignment import RigidAlignment, rotation
 from openptrack_py.tracking.coverage import COVERAGE_CELL_M, Coverage
-from openptrack_py.tracking.state import DetectionArrays
+from openptrack_py.tracking.state import SENSOR_SLOTS, DetectionArrays, TrackTable
+from openptrack_py.tracking.twins import TwinAligner, TwinLesson, rigid_fit
 
 NOISE_BANDS_M = np.array([0.0, 3.0, 5.0, 7.0, np.inf])
 """Edges of the distance bands in which a sensor's noise scale is estimated."""
@@ -69,6 +71,12 @@ NOISE_BAND_CENTRES_M = np.array([2.0, 4.0, 6.0, 8.0])
 """Where each band's scale applies fully (linear in between, constant outside)."""
 CLUTTER_RATE = 0.01
 """Weight of one frame in a sensor's average of unexplained detections."""
+SHARED_RATE = 0.01
+"""Weight of one update in a sensor's share of tracks other sensors feed too."""
+UNSHARED_BELOW = 0.5
+"""A sensor whose share is below this (most of its tracks where others see have no
+other sensor's detections) may have its calibration learned from twins: a calibrated
+sensor's share is about 1, one whose every person has a twin about 0."""
 MIN_CLUTTER_DENSITY = 1e-3
 """Least clutter density assumed, per frame and square metre."""
 
@@ -115,6 +123,7 @@ class _SensorState:
     unexplained_per_frame: float = 0.0
     align: RigidAlignment = field(default_factory=RigidAlignment)
     since_align: int = 0
+    shared: float = 0.0  # share of its tracks where others see that others feed too
     # ring buffer of gated innovations: |nu|^2, track variance, model variance, cut, range
     samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
     head: int = 0
@@ -201,6 +210,8 @@ class OnlineSensorModel:
     calibration_sigma : (float, float)
         Standard deviation of a sensor's calibration error before its alignment is
         learned: metres per axis, and degrees of yaw; ``(0, 0)`` trusts the calibration.
+    twins : TwinAligner, optional
+        Learns misalignments larger than a gate from the rigid map twin tracks agree on.
     """
 
     def __init__(
@@ -218,6 +229,7 @@ class OnlineSensorModel:
         refit_min_batches: int = 10,
         min_samples: int = 60,
         calibration_sigma: tuple[float, float] = (0.0, 0.0),
+        twins: TwinAligner | None = None,
     ) -> None:
         if not 0 < scale_bounds[0] <= 1.0 <= scale_bounds[1]:
             raise ValueError(
@@ -238,22 +250,25 @@ class OnlineSensorModel:
         self.calibration_sigma = (calibration_sigma[0], math.radians(calibration_sigma[1]))
         self._sensors: dict[str, _SensorState] = {}
         self._coverage = Coverage()
+        self.twins = twins
 
     # ------------------------------------------------------------------ state
 
-    def snapshot(self) -> tuple[dict[str, _SensorState], Coverage]:
-        """The learned noise and alignment of every sensor, and the coverage.
+    def snapshot(self) -> tuple[dict[str, _SensorState], Coverage, TwinAligner | None]:
+        """The learned noise and alignment of every sensor, the coverage and the twins.
 
         The coverage is shared, not copied: each batch adds to it once, whatever the
         order, so a replay has nothing to undo.
         """
         states = {name: st.copy() for name, st in self._sensors.items()}
-        return states, self._coverage
+        return states, self._coverage, None if self.twins is None else self.twins.copy()
 
-    def restore(self, state: tuple[dict[str, _SensorState], Coverage]) -> None:
-        """Return to a snapshot."""
+    def restore(self, state: tuple) -> None:  # type: ignore[type-arg]
+        """Return to a snapshot (one taken before twins were kept has none)."""
         self._sensors = {name: st.copy() for name, st in state[0].items()}
-        self._coverage = state[1]  # type: ignore[assignment]
+        self._coverage = state[1]
+        if len(state) > 2 and state[2] is not None and self.twins is not None:
+            self.twins = state[2].copy()
 
     # ------------------------------------------------------------------ queries
 
@@ -374,6 +389,13 @@ class OnlineSensorModel:
             rows = np.column_stack([q, u.track_var, u.model_var, cut, u.distance])
             self._add_samples(st, rows)
         multi_sensor = u.multi_sensor
+        if self.twins is not None:
+            seen = np.zeros(len(u.predicted), dtype=bool)
+            for other in self._sensors:
+                if other != u.sensor_id:
+                    seen |= self._coverage.covers(other, u.predicted)
+            for multi in multi_sensor[seen].tolist():
+                st.shared += SHARED_RATE * (multi - st.shared)
         if self.estimate_bias and multi_sensor.any():
             raw = st.align.invert(u.detected[multi_sensor])
             st.align.add(raw, u.predicted[multi_sensor])
@@ -383,6 +405,35 @@ class OnlineSensorModel:
                 st.align.fit()
                 self._bound(st.align)
                 self._fix_gauge()
+
+    def observe_tracks(self, table: TrackTable, t: float, names: list[str]) -> None:
+        """Learn from the twin tracks of sensors whose misalignment no shared track shows."""
+        if self.twins is None or not self.estimate_bias or len(table) < 2:
+            return
+        unshared = {
+            k for k, name in enumerate(names)
+            if name in self._sensors and self._sensors[name].shared < UNSHARED_BELOW
+        }  # fmt: skip
+        for lesson in self.twins.observe(table, t, unshared):
+            self._teach(names, lesson)
+
+    def _teach(self, names: list[str], lesson: TwinLesson) -> None:
+        """Move the alignments so that the twins meet half-way."""
+        middle = 0.5 * (lesson.a + lesson.b)
+        moves = [(k, lesson.a) for k in lesson.sensors_a] + [(lesson.sensor_b, lesson.b)]
+        for k, seen in moves:
+            if k >= min(len(names), SENSOR_SLOTS - 1):  # the last slot is shared
+                continue
+            st = self._sensors.get(names[k])
+            if st is None:
+                continue
+            if st.align.weight < len(seen):
+                st.align.add(st.align.invert(seen), middle)
+                st.align.fit()
+            else:
+                st.align.then(*rigid_fit(seen, middle))
+            self._bound(st.align)
+        self._fix_gauge()
 
     def _add_samples(self, st: _SensorState, rows: np.ndarray) -> None:
         if len(st.samples) < self.window:
@@ -445,41 +496,3 @@ class OnlineSensorModel:
         for a in learned:
             a.theta -= mean_theta
             a.shift = back @ (a.shift - c) + c - mean_moved
-
-
-class StaticSensorModel:
-    """Every sensor exactly as configured: no noise scale, no bias, no coverage."""
-
-    def noise_scale(self, sensor_id: str, distance: np.ndarray) -> np.ndarray:
-        """Always 1."""
-        return np.ones(len(distance))
-
-    def correct(self, dets: DetectionArrays) -> DetectionArrays:
-        """The detections unchanged."""
-        return dets
-
-    def cross_sensor_var(
-        self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
-    ) -> None:
-        """Calibrations are trusted: nothing added."""
-        return None
-
-    def clutter_density(self, sensor_id: str) -> float:
-        """None known: never stops an association."""
-        return 0.0
-
-    def observe_frame(self, sensor_id: str, unexplained: int) -> None:
-        """Nothing to learn."""
-
-    def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
-        """No coverage is known."""
-        return np.zeros(len(xy), dtype=bool)
-
-    def hidden(
-        self, sensor_id: str, xy: np.ndarray, seen: np.ndarray, twin_m: float
-    ) -> np.ndarray:
-        """Nothing is known to be hidden."""
-        return np.zeros(len(xy), dtype=bool)
-
-    def learn(self, updates: SensorUpdates) -> None:
-        """Nothing to learn."""

@@ -59,8 +59,8 @@ from openptrack_py.tracking.merging import NoMerging
 from openptrack_py.tracking.params import TrackerParams
 from openptrack_py.tracking.publish import published_tracks
 from openptrack_py.tracking.replay import ReplayHistory
-from openptrack_py.tracking.sensor_model import StaticSensorModel
 from openptrack_py.tracking.state import DetectionArrays, TrackTable, sensor_slot
+from openptrack_py.tracking.static_sensors import StaticSensorModel
 from openptrack_py.tracking.ukf import MerweSigmaPoints, Projection, UnscentedKalmanFilter
 
 log = logging.getLogger(__name__)
@@ -103,7 +103,7 @@ class Tracker:
         Ends tracks.
     sensors : SensorModel, optional
         What is learned about each sensor (noise, bias, coverage);
-        :class:`~openptrack_py.tracking.sensor_model.StaticSensorModel` if omitted.
+        :class:`~openptrack_py.tracking.static_sensors.StaticSensorModel` if omitted.
     merger : Merger, optional
         Merges tracks that follow one person; none if omitted.
     identity : IdentityModel, optional
@@ -255,14 +255,13 @@ class Tracker:
         assigned, d2 = self._associate_and_update(dets, t, dt)
         self._start_tracks(dets, assigned, d2, t)
         self._lifecycle(t, dets)
+        self.sensors.observe_tracks(self.table, t, list(self.sensor_index))
 
     def _snapshot(self) -> _Snapshot:
         c = self.counters
         roles = tuple(r.snapshot() if stateful else None for r, stateful in self._stateful())
-        return _Snapshot(
-            self.table.copy(), self.time, self.max_id, c["tracks_started"],
-            c["tracks_deleted"], roles,
-        )  # fmt: skip
+        return _Snapshot(self.table.copy(), self.time, self.max_id, c["tracks_started"],
+                         c["tracks_deleted"], roles)  # fmt: skip
 
     def _restore(self, snapshot: _Snapshot) -> None:
         self.table, self.time, self.max_id = snapshot.table, snapshot.time, snapshot.max_id

@@ -138,6 +138,9 @@ class PerfectSensors:
     def learn(self, updates: object) -> None:
         pass
 
+    def observe_tracks(self, table: TrackTable, t: float, names: list[str]) -> None:
+        pass
+
 
 class NeverMerge:
     """No two tracks are ever one person."""

@@ -117,7 +117,8 @@ def test_an_unlearned_calibration_widens_only_pairs_of_different_sensors() -> No
     uncertainty (shift and yaw at its distance); against its own sensor's, nothing; it
     shrinks as the sensor's alignment rests on more pairs, and is 0 when calibrations
     are trusted."""
-    from openptrack_py.tracking.sensor_model import ALIGNMENT_PAIR_VAR_M2, StaticSensorModel
+    from openptrack_py.tracking.sensor_model import ALIGNMENT_PAIR_VAR_M2
+    from openptrack_py.tracking.static_sensors import StaticSensorModel
 
     model = OnlineSensorModel(calibration_sigma=(0.12, 2.0))
     distance = np.array([1.0, 5.0])
