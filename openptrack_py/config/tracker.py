@@ -168,7 +168,9 @@ class TrackerConfig(StrictModel):
         together at a steady separation. One pair may be two people walking together;
         a rigid map of the floor that several distinct pairs agree on is the two
         calibrations' disagreement, and both sensors' alignments are taught to meet
-        half-way (``tracking/twins.py``). Off by default.
+        half-way (``tracking/twins.py``). On by default: it acts only on a sensor whose
+        share is low, which a calibrated sensor's is not (docs/evaluation.md, "Twin
+        tracks").
     merge_distance_m : float
         Two confirmed tracks closer than this, moving alike, both being detected and
         never detected in one sensor frame together, follow one person.
@@ -351,7 +353,7 @@ class TrackerConfig(StrictModel):
     max_bias_m: float = Field(0.5, ge=0.0, le=5.0)
     calibration_sigma_m: float = Field(0.0, ge=0.0, le=2.0)
     calibration_sigma_deg: float = Field(0.0, ge=0.0, le=20.0)
-    align_from_twins: bool = False
+    align_from_twins: bool = True
     merge_distance_m: float = Field(0.45, ge=0.0, le=2.0)
     merge_after_s: float = Field(0.5, ge=0.0, le=60.0)
     merge_max_speed_difference_mps: float = Field(1.0, gt=0.0, le=10.0)
