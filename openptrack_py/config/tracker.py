@@ -163,14 +163,15 @@ class TrackerConfig(StrictModel):
         refinement (0.12 and 2 are its middle); a calibration refined from a walk or a
         checkerboard needs none.
     align_from_twins : bool
-        Learn a misalignment larger than an association gate from *twins*: pairs of
-        tracks each fed by one sensor alone though both sensors see the place, walking
-        together at a steady separation. One pair may be two people walking together;
-        a rigid map of the floor that several distinct pairs agree on is the two
-        calibrations' disagreement, and both sensors' alignments are taught to meet
-        half-way (``tracking/twins.py``). On by default: it acts only on a sensor whose
-        share is low, which a calibrated sensor's is not (docs/evaluation.md, "Twin
-        tracks").
+        Learn a misalignment larger than an association gate from *twins*: a track fed
+        by one sensor alone beside another sensor's (or several sensors') track, the
+        two walking together at a steady separation, where that sensor's *share* is low
+        (of its tracks at places others see, under half are fed by others too). One
+        pair may be two people walking together; a rigid map of the floor that two or
+        more distinct pairs agree on is the calibrations' disagreement, and both sides'
+        alignments are taught to meet half-way (``tracking/twins.py``). On by default: a
+        calibrated sensor's share is about 1, so it is never taught (docs/evaluation.md,
+        "Twin tracks").
     merge_distance_m : float
         Two confirmed tracks closer than this, moving alike, both being detected and
         never detected in one sensor frame together, follow one person.

@@ -36,7 +36,9 @@ the innovations of the confirmed tracks it updates:
   at the detection's distance ``d``: the prior, shrunk to its posterior by the ``n``
   pairs the sensor's fitted alignment rests on (:data:`ALIGNMENT_PAIR_VAR_M2`). A
   sensor's detections are never widened against its own tracks: its own error is
-  common to both.
+  common to both. With ``twins``, a sensor whose *share* is low (of its tracks where
+  others see, few that others feed too) learns it from the rigid map its twin tracks
+  agree on (:mod:`~openptrack_py.tracking.twins`).
 * a **clutter density**: how many of the sensor's detections no track takes, per
   frame and square metre of the floor it covers. A track may only take a detection
   that it explains better than clutter would (its likelihood above that density), so a
@@ -410,10 +412,8 @@ class OnlineSensorModel:
         """Learn from the twin tracks of sensors whose misalignment no shared track shows."""
         if self.twins is None or not self.estimate_bias or len(table) < 2:
             return
-        unshared = {
-            k for k, name in enumerate(names)
-            if name in self._sensors and self._sensors[name].shared < UNSHARED_BELOW
-        }  # fmt: skip
+        shares = [self._sensors[n].shared if n in self._sensors else 1.0 for n in names]
+        unshared = {k for k, share in enumerate(shares) if share < UNSHARED_BELOW}
         for lesson in self.twins.observe(table, t, unshared):
             self._teach(names, lesson)
 
