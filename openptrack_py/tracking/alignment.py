@@ -25,6 +25,21 @@ def rotation(theta: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
+def procrustes_angle(cross: np.ndarray) -> float:
+    """The rotation (radians) best mapping centred points onto others (2-D Procrustes).
+
+    ``cross`` is their ``2 x 2`` cross-covariance, ``sum(src_i dst_i^T)``.
+    """
+    return math.atan2(cross[0, 1] - cross[1, 0], cross[0, 0] + cross[1, 1])
+
+
+def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray]:
+    """Least-squares rotation and translation mapping ``src (k, 2)`` onto ``dst``."""
+    sc, dc = src.mean(axis=0), dst.mean(axis=0)
+    theta = procrustes_angle((src - sc).T @ (dst - dc))
+    return theta, dc - rotation(theta) @ sc
+
+
 @dataclass
 class RigidAlignment:
     """Exponentially forgotten sums of matched pairs, and the rigid map they give.
@@ -101,7 +116,7 @@ class RigidAlignment:
         spread = float(self.sum_zz.sum() / self.weight - zbar @ zbar)
         if spread >= self.min_spread_m2:
             m = self.sum_zx / self.weight - np.outer(zbar, xbar)
-            self.theta = math.atan2(m[0, 1] - m[1, 0], m[0, 0] + m[1, 1])
+            self.theta = procrustes_angle(m)
         self.shift = xbar - rotation(self.theta) @ zbar
 
     def centroid(self) -> np.ndarray:

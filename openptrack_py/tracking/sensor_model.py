@@ -62,10 +62,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from openptrack_py.tracking.alignment import RigidAlignment, rotation
+from openptrack_py.tracking.alignment import RigidAlignment, rigid_fit, rotation
 from openptrack_py.tracking.coverage import COVERAGE_CELL_M, Coverage
 from openptrack_py.tracking.state import SENSOR_SLOTS, DetectionArrays, TrackTable
-from openptrack_py.tracking.twins import TwinAligner, TwinLesson, rigid_fit
+from openptrack_py.tracking.twins import TwinAligner, TwinLesson
 
 NOISE_BANDS_M = np.array([0.0, 3.0, 5.0, 7.0, np.inf])
 """Edges of the distance bands in which a sensor's noise scale is estimated."""
@@ -410,11 +410,12 @@ class OnlineSensorModel:
 
     def observe_tracks(self, table: TrackTable, t: float, names: list[str]) -> None:
         """Learn from the twin tracks of sensors whose misalignment no shared track shows."""
-        if self.twins is None or not self.estimate_bias or len(table) < 2:
+        twins = self.twins
+        if twins is None or not self.estimate_bias or len(table) < 2 or not twins.due(t):
             return
         shares = [self._sensors[n].shared if n in self._sensors else 1.0 for n in names]
         unshared = {k for k, share in enumerate(shares) if share < UNSHARED_BELOW}
-        for lesson in self.twins.observe(table, t, unshared):
+        for lesson in twins.observe(table, t, unshared):
             self._teach(names, lesson)
 
     def _teach(self, names: list[str], lesson: TwinLesson) -> None:

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from openptrack_py.tracking.alignment import rigid_fit, rotation
 from openptrack_py.tracking.state import TrackTable
 
 # columns of TwinAligner.rows
@@ -56,14 +57,9 @@ class TwinLesson:
     b: np.ndarray
 
 
-def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray]:
-    """Least-squares rotation and translation mapping ``src (k, 2)`` onto ``dst``."""
-    sc, dc = src.mean(axis=0), dst.mean(axis=0)
-    m = (src - sc).T @ (dst - dc)
-    theta = math.atan2(m[0, 1] - m[1, 0], m[0, 0] + m[1, 1])
-    c, s = math.cos(theta), math.sin(theta)
-    rot = np.array([[c, -s], [s, c]])
-    return theta, dc - rot @ sc
+def _pair_keys(rows: np.ndarray) -> np.ndarray:
+    """One number per pair of track ids of ``rows``."""
+    return rows[:, _IA] * 1e9 + rows[:, _IB]
 
 
 @dataclass
@@ -112,13 +108,17 @@ class TwinAligner:
         """An independent copy."""
         return replace(self, rows=self.rows.copy())
 
+    def due(self, t: float) -> bool:
+        """Whether a look is due at ``t`` (one every ``sample_every_s``)."""
+        return t - self.last_sample >= self.sample_every_s
+
     def observe(self, tb: TrackTable, t: float, unshared: set[int]) -> list[TwinLesson]:
         """Sample the table's twin pairs at ``t``; return the lessons of any map agreed on.
 
         ``unshared``: the sensors (by index) whose share is low; only they are taught,
         against one other such sensor or a group of sensors.
         """
-        if t - self.last_sample < self.sample_every_s:
+        if not self.due(t):
             return []
         self.last_sample = t
         self.rows = self.rows[self.rows[:, _T] > t - self.window_s]
@@ -176,7 +176,7 @@ class TwinAligner:
     def _steady(self, rows: np.ndarray) -> np.ndarray:
         """Mask of the rows whose pair walked together steadily for ``steady_s`` or more."""
         keep = np.zeros(len(rows), dtype=bool)
-        pairs = rows[:, _IA] * 1e9 + rows[:, _IB]
+        pairs = _pair_keys(rows)
         need = 0.75 * self.steady_s / self.sample_every_s
         for key in np.unique(pairs):
             mine = pairs == key
@@ -194,7 +194,7 @@ class TwinAligner:
     def _agree(self, rows: np.ndarray, t: float) -> np.ndarray | None:
         """``(k, 4)`` positions ``a, b`` of the samples that agree on one map, or None."""
         rows = rows[self._steady(rows)]
-        pairs = rows[:, _IA] * 1e9 + rows[:, _IB]
+        pairs = _pair_keys(rows)
         if len(np.unique(pairs)) < self.min_people:
             return None
         a, b = rows[:, _AX : _AY + 1], rows[:, _BX : _BY + 1]
@@ -220,7 +220,7 @@ class TwinAligner:
     @staticmethod
     def _agreeing(rows: np.ndarray, inliers: np.ndarray) -> np.ndarray:
         """The inliers of the pairs most of whose samples are inliers."""
-        pairs = rows[:, _IA] * 1e9 + rows[:, _IB]
+        pairs = _pair_keys(rows)
         keep = inliers.copy()
         for key in np.unique(pairs[inliers]):
             mine = pairs == key
@@ -234,8 +234,7 @@ class TwinAligner:
         """Samples the map takes within tolerance, if the map is one believed possible."""
         if abs(theta) > math.radians(self.max_rotation_deg):
             return np.zeros(len(a), dtype=bool)
-        c, s = math.cos(theta), math.sin(theta)
-        mapped = b @ np.array([[c, -s], [s, c]]).T + shift
+        mapped = b @ rotation(theta).T + shift
         if float(np.linalg.norm((mapped - b).mean(axis=0))) > self.max_shift_m:
             return np.zeros(len(a), dtype=bool)
         return np.linalg.norm(mapped - a, axis=1) <= self.tolerance_m

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from openptrack_py.tracking.alignment import RigidAlignment, rotation
+from openptrack_py.tracking.alignment import RigidAlignment, rigid_fit, rotation
 from openptrack_py.tracking.sensor_model import OnlineSensorModel
 from openptrack_py.tracking.state import SENSOR_SLOTS, TrackTable
-from openptrack_py.tracking.twins import TwinAligner, TwinLesson, rigid_fit
+from openptrack_py.tracking.twins import TwinAligner, TwinLesson
 
 
 def test_rigid_fit_recovers_a_rotation_and_a_shift() -> None:
