@@ -83,17 +83,18 @@ def test_board_and_shelf_tops_between_people_are_fewer_people() -> None:
     """Seeds 4-7 (not looked at while developing), Kinect v2 and RealSense.
 
     The detector before the cap-shape test made 9 + 29 false people here; with it, 7 +
-    16; with shoulders asked of every crown-like cap, 5 + 8, and it finds the same
-    people. It does not remove them all: a cap right at a shelf's corner, where what
-    lies around it at shoulder reach is the floor or the people in front, still passes
-    as a head now and then.
+    16; with shoulders asked of every crown-like cap, 5 + 8 (5 + 6 after later changes
+    to the renderer); with caps wider across the line of sight than a head taken for
+    lines, 5 + 4; and it finds the same people. It does not remove them all:
+    a cap right at a shelf's corner, where what lies around it at shoulder reach is the
+    floor or the people in front, still passes as a head now and then.
     """
     cases = [(seed, kind) for kind in ("kinect2", "realsense") for seed in range(4, 8)]
     totals = np.array(map_on_cores(_count, cases))
     false, found, wanted = totals.sum(axis=0)
     assert wanted >= 300
     assert found == wanted  # no real person lost
-    assert false <= 13, totals
+    assert false <= 9, totals
 
 
 _II, _JJ = np.mgrid[-10:11, -10:11]
@@ -125,9 +126,11 @@ def test_a_crown_is_a_head_only_with_shoulders_below_it() -> None:
     assert clusterer._is_head(top, 10, 10)
 
 
-def _cap(cells: list[tuple[int, int]]) -> str:
+def _cap(cells: list[tuple[int, int]], across: tuple[float, float] | None = None) -> str:
     ci, cj = (np.array(v) for v in zip(*cells, strict=True))
-    return HeadClusterer(cell_m=0.06)._cap_shape(ci, cj)
+    return HeadClusterer(cell_m=0.06)._cap_shape(
+        ci, cj, None if across is None else np.array(across)
+    )
 
 
 def test_cap_shapes_tell_crowns_from_lines_and_flat_tops() -> None:
@@ -139,3 +142,19 @@ def test_cap_shapes_tell_crowns_from_lines_and_flat_tops() -> None:
     assert _cap(edge[:5]) == "crown"  # too few cells to call it a line
     assert _cap(top) == "large"  # a shelf's top: 0.66 x 0.66 m
     assert _cap([(0, 0), (0, 1)]) == "crown"
+
+
+def test_a_cap_wider_across_the_line_of_sight_than_a_head_is_a_line() -> None:
+    """A head (at most 0.17 m broad) fills five 0.06 m cells across the line of sight at most.
+
+    Along it, depth noise smears a far head's cap over more cells: that is still a head.
+    """
+    six = [(0, j) for j in range(6)]  # 0.36 m wide, too few cells for the elongation test
+    five = [(0, j) for j in range(5)] + [(1, 2)]
+    assert _cap(six, across=(0.0, 1.0)) == "line"  # the sensor looks along i
+    assert _cap(six, across=(1.0, 0.0)) == "crown"  # the sensor looks along j
+    assert _cap(five, across=(0.0, 1.0)) == "crown"
+    assert _cap(six) == "crown"  # the line of sight unknown
+    oblique = (np.sqrt(0.5), np.sqrt(0.5))  # six cells on a diagonal span 7.8 across it
+    assert _cap([(k, k) for k in range(6)], across=(-oblique[0], oblique[1])) == "crown"
+    assert _cap([(k, k) for k in range(6)], across=oblique) == "line"

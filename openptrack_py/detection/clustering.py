@@ -91,6 +91,13 @@ def _fill_holes(top: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(top), top, bridged)
 
 
+def _across(i: int, j: int, foot: np.ndarray) -> np.ndarray | None:
+    """Unit vector across the line of sight at cell ``(i, j)`` (None right below the sensor)."""
+    ray = np.array([i, j], dtype=float) - foot
+    norm = float(np.hypot(*ray))
+    return None if norm < 1.0 else np.array([-ray[1], ray[0]]) / norm
+
+
 class HeadClusterer:
     """Clusters floor-frame points into person blobs.
 
@@ -135,6 +142,9 @@ class HeadClusterer:
     LINE_MIN_CELLS = 7
     """Fewer cap cells are not judged a line: a low-resolution sensor's single image row
     across a far head makes a short line of a few cells."""
+    HEAD_BREADTH_M = 0.17
+    """Broadest head: head breadth is about 0.155 m on average in adult men and under
+    0.17 m in all but the largest (anthropometric surveys such as ANSUR II)."""
     LEVEL_CELLS_FACTOR = 3.0
     """Cells at a peak's level within twice the cap reach, in head crowns (0.12 m radius)."""
     PROMINENCE_M = 0.15
@@ -181,7 +191,11 @@ class HeadClusterer:
         self._bridge = np.ones((5, 5), bool)
 
     def cluster(self, xyz: np.ndarray) -> Blobs:
-        """Blobs of ``(n, 3)`` points ``(x, y, height)`` in a floor-aligned frame."""
+        """Blobs of ``(n, 3)`` points ``(x, y, height)`` in a floor-aligned frame.
+
+        The frame's origin is the sensor's foot (the point of the floor below it), so
+        that the line of sight to every cell is known.
+        """
         n = len(xyz)
         if n < self.min_points:
             return _empty(n)
@@ -206,14 +220,17 @@ class HeadClusterer:
         peaks &= top == ndimage.maximum_filter(
             top, size=self._window, mode="constant", cval=-np.inf
         )
-        cell_blob = self._assign_heads(top, components, peaks)
+        cell_blob = self._assign_heads(top, components, peaks, -lo / cell - 0.5)
         point_blob = cell_blob.ravel()[lin]
         return self._summarise(xyz, point_blob, cell_blob)
 
     def _assign_heads(
-        self, top: np.ndarray, components: np.ndarray, peaks: np.ndarray
+        self, top: np.ndarray, components: np.ndarray, peaks: np.ndarray, foot: np.ndarray
     ) -> np.ndarray:
-        """Blob index per cell (-1 for none): each component split among its heads."""
+        """Blob index per cell (-1 for none): each component split among its heads.
+
+        ``foot`` is the sensor's foot in cell coordinates.
+        """
         cell = self.cell_m
         pi, pj = np.nonzero(peaks)
         out = np.full(top.shape, -1, dtype=np.int64)
@@ -242,7 +259,9 @@ class HeadClusterer:
             start = end
         head_comp = np.array([c for c, _, _ in heads])
         head_ij = np.array([(a, b) for _, a, b in heads], dtype=float)
-        rounded = np.array([self._is_head(filled, int(a), int(b)) for _, a, b in heads])
+        rounded = np.array(
+            [self._is_head(filled, int(a), int(b), _across(a, b, foot)) for _, a, b in heads]
+        )
         ci, cj = np.nonzero(components > 0)
         cc = components[ci, cj]
         # Nearest head of the same component for every cell.
@@ -288,15 +307,23 @@ class HeadClusterer:
         prominence = self.FAR_PROMINENCE_M if far else self.PROMINENCE_M
         return bool(saddle < top[other] - prominence)
 
-    def _cap_shape(self, ci: np.ndarray, cj: np.ndarray) -> str:
+    def _cap_shape(self, ci: np.ndarray, cj: np.ndarray, across: np.ndarray | None = None) -> str:
         """``line``, ``large`` or ``crown``: what the cap's cells look like.
 
         A line (of at least :attr:`LINE_MIN_CELLS` cells) has a long axis over
         :attr:`CAP_LINE_M` and :attr:`CAP_ELONGATION` times its short one (the top edge
-        of a board, a shelf's front seen between people); a large cap has more cells
-        than :attr:`CROWN_CELLS_FACTOR` head crowns (0.12 m radius); anything else is
-        the size and shape of a head's crown.
+        of a board, a shelf's front seen between people); so is a cap wider across the
+        line of sight (``across``, a unit vector in cell axes) than a head can be: a
+        head of :attr:`HEAD_BREADTH_M` covers at most two cells more than it fills,
+        and one more is allowed for the pixel footprint. Depth noise stretches a cap
+        along the line of sight only, so its width across it is measured clean. A
+        large cap has more cells than :attr:`CROWN_CELLS_FACTOR` head crowns (0.12 m
+        radius); anything else is the size and shape of a head's crown.
         """
+        if across is not None:
+            width = ci * across[0] + cj * across[1]
+            if np.ptp(width) + 1 > int(self.HEAD_BREADTH_M / self.cell_m) + 3:
+                return "line"
         if len(ci) >= self.LINE_MIN_CELLS:
             cov = np.cov(np.vstack([ci, cj]).astype(float))
             small, large = np.sqrt(12 * np.maximum(np.linalg.eigvalsh(cov), 0)) + 1
@@ -306,7 +333,7 @@ class HeadClusterer:
             return "large"
         return "crown"
 
-    def _is_head(self, top: np.ndarray, i: int, j: int) -> bool:
+    def _is_head(self, top: np.ndarray, i: int, j: int, across: np.ndarray | None = None) -> bool:
         """Whether a height peak is a head's crown rather than a flat or long top.
 
         The cap of a head — the connected cells within :attr:`CAP_DEPTH_M` of the peak —
@@ -320,7 +347,9 @@ class HeadClusterer:
         twice that far (depth noise blurs far heads into their shoulders), is a head
         only if the ring lies :attr:`CAP_DEPTH_M` lower; anything larger is not a head;
         nor is a peak with many cells at its level around it (more than
-        :attr:`LEVEL_CELLS_FACTOR` head crowns). ``top`` has single-cell holes filled.
+        :attr:`LEVEL_CELLS_FACTOR` head crowns).
+        ``top`` has single-cell holes filled; ``across`` is the unit vector across the
+        line of sight at the peak, in cell axes (None: not known).
         """
         reach = self.CAP_REACH_M / self.cell_m
         span = int(np.ceil(2 * reach)) + 1
@@ -337,7 +366,7 @@ class HeadClusterer:
         level = (np.abs(window - peak) <= self.CAP_DEPTH_M) & (d2 <= 4 * reach * reach)
         if np.count_nonzero(level) > self.LEVEL_CELLS_FACTOR * np.pi * (0.12 / self.cell_m) ** 2:
             return False
-        shape = self._cap_shape(ci, cj)
+        shape = self._cap_shape(ci, cj, across)
         if shape == "line":
             return False
         if far > 4 * reach * reach:
