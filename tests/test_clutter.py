@@ -155,6 +155,7 @@ def test_a_cap_wider_across_the_line_of_sight_than_a_head_is_a_line() -> None:
     assert _cap(six, across=(1.0, 0.0)) == "crown"  # the sensor looks along j
     assert _cap(five, across=(0.0, 1.0)) == "crown"
     assert _cap(six) == "crown"  # the line of sight unknown
-    oblique = (np.sqrt(0.5), np.sqrt(0.5))  # six cells on a diagonal span 7.8 across it
+    # six cells on a diagonal: one cell wide along the line of sight, 8.1 across it
+    oblique = (np.sqrt(0.5), np.sqrt(0.5))
     assert _cap([(k, k) for k in range(6)], across=(-oblique[0], oblique[1])) == "crown"
     assert _cap([(k, k) for k in range(6)], across=oblique) == "line"

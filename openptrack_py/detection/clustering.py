@@ -143,8 +143,8 @@ class HeadClusterer:
     """Fewer cap cells are not judged a line: a low-resolution sensor's single image row
     across a far head makes a short line of a few cells."""
     HEAD_BREADTH_M = 0.17
-    """Broadest head: head breadth is about 0.155 m on average in adult men and under
-    0.17 m in all but the largest (anthropometric surveys such as ANSUR II)."""
+    """Broadest head: head breadth is about 0.155-0.16 m on average in adult men and
+    under 0.17 m in all but the largest (anthropometric surveys such as ANSUR II)."""
     LEVEL_CELLS_FACTOR = 3.0
     """Cells at a peak's level within twice the cap reach, in head crowns (0.12 m radius)."""
     PROMINENCE_M = 0.15
@@ -314,11 +314,12 @@ class HeadClusterer:
         :attr:`CAP_LINE_M` and :attr:`CAP_ELONGATION` times its short one (the top edge
         of a board, a shelf's front seen between people); so is a cap wider across the
         line of sight (``across``, a unit vector in cell axes) than a head can be: a
-        head of :attr:`HEAD_BREADTH_M` covers at most two cells more than it fills,
-        and one more is allowed for the pixel footprint. Depth noise stretches a cap
-        along the line of sight only, so its width across it is measured clean. A
-        large cap has more cells than :attr:`CROWN_CELLS_FACTOR` head crowns (0.12 m
-        radius); anything else is the size and shape of a head's crown.
+        head of :attr:`HEAD_BREADTH_M` straddles at most ``int(breadth / cell) + 2``
+        cells (four of 0.06 m), and one more is allowed for the pixel footprint.
+        Depth noise stretches a cap along the line of sight only, so its width across
+        it is measured clean. A large cap has more cells than
+        :attr:`CROWN_CELLS_FACTOR` head crowns (0.12 m radius); anything else is the
+        size and shape of a head's crown.
         """
         if across is not None:
             width = ci * across[0] + cj * across[1]
