@@ -106,6 +106,17 @@ class Coverage:
             return np.zeros(len(xy), dtype=bool)
         return np.isin(_cell_codes(xy), sensor.sorted_covered(), assume_unique=False)
 
+    def covers_any(self, sensor_ids: list[str], xy: np.ndarray) -> np.ndarray:
+        """Mask of floor positions ``xy (n, 2)`` that any of these sensors is known to see."""
+        mask = np.zeros(len(xy), dtype=bool)
+        known = [self._sensors[s] for s in sensor_ids if s in self._sensors]
+        known = [s for s in known if s.covered]
+        if known and len(xy):
+            codes = _cell_codes(xy)
+            for sensor in known:
+                mask |= np.isin(codes, sensor.sorted_covered())
+        return mask
+
     def covered_cells(self, sensor_id: str) -> int:
         """How many cells this sensor is known to see."""
         sensor = self._sensors.get(sensor_id)

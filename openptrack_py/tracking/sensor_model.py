@@ -392,10 +392,8 @@ class OnlineSensorModel:
             self._add_samples(st, rows)
         multi_sensor = u.multi_sensor
         if self.twins is not None:
-            seen = np.zeros(len(u.predicted), dtype=bool)
-            for other in self._sensors:
-                if other != u.sensor_id:
-                    seen |= self._coverage.covers(other, u.predicted)
+            others = [other for other in self._sensors if other != u.sensor_id]
+            seen = self._coverage.covers_any(others, u.predicted)
             for multi in multi_sensor[seen].tolist():
                 st.shared += SHARED_RATE * (multi - st.shared)
         if self.estimate_bias and multi_sensor.any():

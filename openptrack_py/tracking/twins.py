@@ -205,22 +205,21 @@ class TwinAligner:
             if pairs[p] == pairs[q] or np.linalg.norm(b[p] - b[q]) < 1.0:
                 continue
             theta, shift = rigid_fit(b[[p, q]], a[[p, q]])
-            inliers = self._agreeing(rows, self._inliers(a, b, theta, shift))
+            inliers = self._agreeing(pairs, self._inliers(a, b, theta, shift))
             count = self._people(rows[inliers])
             if count > best_count:
                 best, best_count = inliers, count
         if best is None or best_count < self.min_people:
             return None
         theta, shift = rigid_fit(b[best], a[best])
-        best = self._agreeing(rows, self._inliers(a, b, theta, shift))
+        best = self._agreeing(pairs, self._inliers(a, b, theta, shift))
         if self._people(rows[best]) < self.min_people:
             return None
         return np.column_stack([a[best], b[best]])
 
     @staticmethod
-    def _agreeing(rows: np.ndarray, inliers: np.ndarray) -> np.ndarray:
-        """The inliers of the pairs most of whose samples are inliers."""
-        pairs = _pair_keys(rows)
+    def _agreeing(pairs: np.ndarray, inliers: np.ndarray) -> np.ndarray:
+        """The inliers of the pairs (keys per sample) most of whose samples are inliers."""
         keep = inliers.copy()
         for key in np.unique(pairs[inliers]):
             mine = pairs == key

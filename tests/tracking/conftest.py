@@ -2,7 +2,8 @@
 
 Each stub implements only its role's protocol (:mod:`openptrack_py.tracking.base`) and
 nothing else: a tracker built from them proves that the tracker reads no field of its
-parts beyond their interface.
+parts beyond their interface. The sensor and identity roles are the project's own that
+learn nothing (:class:`StaticSensorModel`, :class:`NullIdentity`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import pytest
 from openptrack_py.tracking import (
     DetectionArrays,
     NullIdentity,
+    StaticSensorModel,
     Tracker,
     TrackerParams,
     TrackTable,
@@ -107,41 +109,6 @@ class UnseenDeleter:
         return t - table.last_seen > 1.0
 
 
-class PerfectSensors:
-    """Every sensor exactly as configured; nothing learned."""
-
-    def correct(self, dets: DetectionArrays) -> DetectionArrays:
-        return dets
-
-    def noise_scale(self, sensor_id: str, distance: np.ndarray) -> np.ndarray:
-        return np.ones(len(distance))
-
-    def cross_sensor_var(
-        self, sensor_id: str, distance: np.ndarray, last_sensor: np.ndarray, names: list[str]
-    ) -> None:
-        return None
-
-    def covers(self, sensor_id: str, xy: np.ndarray) -> np.ndarray:
-        return np.zeros(len(xy), dtype=bool)
-
-    def hidden(
-        self, sensor_id: str, xy: np.ndarray, seen: np.ndarray, twin_m: float
-    ) -> np.ndarray:
-        return np.zeros(len(xy), dtype=bool)
-
-    def clutter_density(self, sensor_id: str) -> float:
-        return 0.0
-
-    def observe_frame(self, sensor_id: str, unexplained: int) -> None:
-        pass
-
-    def learn(self, updates: object) -> None:
-        pass
-
-    def observe_tracks(self, table: TrackTable, t: float, names: list[str]) -> None:
-        pass
-
-
 class NeverMerge:
     """No two tracks are ever one person."""
 
@@ -229,7 +196,7 @@ def stub_tracker(identity: object | None = None, **kw: object) -> Tracker:
         GreedyAssociator(),
         EveryOrphanInitiator(),
         UnseenDeleter(),
-        PerfectSensors(),
+        StaticSensorModel(),
         NeverMerge(),
         identity,  # type: ignore[arg-type]
         TrackerParams(**kw),  # type: ignore[arg-type]
@@ -246,6 +213,6 @@ def stub_roles() -> dict[str, object]:
         "associator": GreedyAssociator(),
         "initiator": EveryOrphanInitiator(),
         "deleter": UnseenDeleter(),
-        "sensors": PerfectSensors(),
+        "sensors": StaticSensorModel(),
         "merger": NeverMerge(),
     }
