@@ -176,3 +176,19 @@ def test_a_coverage_pickled_before_viewpoints_existed_learns_them_afresh() -> No
     assert not cov.hidden("s", xy, np.array([0]), 0.9).any()
     cov.mark("s", 1, xy, _ranges(xy, rng))
     assert cov._viewpoints.view("s") is not None
+
+
+def test_covered_by_any_of_several_sensors_is_covered_by_one_of_them() -> None:
+    rng = np.random.default_rng(5)
+    cov = Coverage()
+    for k, name in enumerate(("a", "b", "c")):
+        xy = rng.uniform([3.0 * k, 0.0], [3.0 * k + 4.0, 4.0], (400, 2))
+        cov.mark(name, 0, xy)
+    probe = rng.uniform([-1.0, -1.0], [11.0, 5.0], (300, 2))
+    for names in (["a"], ["a", "c"], ["b", "c", "unknown"], []):
+        one_by_one = np.zeros(len(probe), dtype=bool)
+        for name in names:
+            one_by_one |= cov.covers(name, probe)
+        assert np.array_equal(cov.covers_any(names, probe), one_by_one)
+    assert cov.covers_any(["a", "b"], probe).any()
+    assert not cov.covers_any(["a", "b"], probe).all()
