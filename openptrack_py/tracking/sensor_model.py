@@ -478,20 +478,23 @@ class OnlineSensorModel:
     def _fix_gauge(self) -> None:
         """Make the sensors' mean correction the identity (the world is their consensus).
 
-        Rotating or shifting every sensor at once changes no association, so nothing in
-        the data fixes it; left free it would drift. Each correction ``T`` becomes
-        ``G o T`` with ``G`` the inverse of the sensors' weighted mean correction about
-        their common centroid.
+        Moving every sensor at once changes no association, so nothing in the data fixes
+        it. Each correction ``T`` becomes ``G o T``, ``G`` the rigid move bringing the
+        weighted mean rotation and displacement to zero, each sensor's displacement taken
+        at its own pairs' centroid, the only place it is measured: at one common point a
+        sensor's small rotation is carried metres from its data across a large room
+        (``tests/tracking/test_sensor_model.py``: the world 0.06-0.5 m off in a hall).
         """
         learned = [st.align for st in self._sensors.values() if st.align.weight > 0]
         if len(learned) < 2:
             return
         w = np.array([a.weight for a in learned])
-        c = np.average([a.centroid() for a in learned], axis=0, weights=w)
+        own = np.array([a.centroid() for a in learned])
+        c = np.average(own, axis=0, weights=w)
         mean_theta = float(np.average([a.theta for a in learned], weights=w))
         back = rotation(-mean_theta)
-        moved = np.array([back @ (a.apply(c[None])[0] - c) for a in learned])
-        mean_moved = np.average(moved, axis=0, weights=w)
+        there = np.array([a.apply(o[None])[0] for a, o in zip(learned, own, strict=True)])
+        mean_moved = np.average((there - c) @ back.T - (own - c), axis=0, weights=w)
         for a in learned:
             a.theta -= mean_theta
             a.shift = back @ (a.shift - c) + c - mean_moved
