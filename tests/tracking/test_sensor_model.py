@@ -93,7 +93,7 @@ def test_a_sensor_offset_against_the_others_is_learned_and_removed() -> None:
 def test_sensors_headings_off_along_a_long_hall_leave_the_world_where_their_data_are() -> None:
     """Eight sensors along a 28 m hall, each seeing the floor 2-6 m in front of it, each
     with its heading off about its own position (the left half +2 degrees, the right
-    half -2: the mean error is nothing). Learned against the true places, every
+    half -2: their mean is zero). Learned against the true places, every
     correction must stay the true one where the sensor's data are. Holding the mean
     correction at the identity at the hall's centre instead carried each sensor's
     rotation 2-14 m from its data and left the sensors 0.06-0.5 m off."""
