@@ -53,6 +53,12 @@ class _SensorCoverage:
         return self._sorted
 
 
+def _within(codes: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Mask of ``codes`` found in the sorted, non-empty ``cells`` (``np.isin``, faster)."""
+    at = np.minimum(np.searchsorted(cells, codes), len(cells) - 1)
+    return cells[at] == codes
+
+
 class Coverage:
     """The floor cells each sensor is known to see."""
 
@@ -104,7 +110,7 @@ class Coverage:
         sensor = self._sensors.get(sensor_id)
         if sensor is None or not sensor.covered or not len(xy):
             return np.zeros(len(xy), dtype=bool)
-        return np.isin(_cell_codes(xy), sensor.sorted_covered(), assume_unique=False)
+        return _within(_cell_codes(xy), sensor.sorted_covered())
 
     def covers_any(self, sensor_ids: list[str], xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` that any of these sensors is known to see."""
@@ -114,7 +120,7 @@ class Coverage:
         if known and len(xy):
             codes = _cell_codes(xy)
             for sensor in known:
-                mask |= np.isin(codes, sensor.sorted_covered())
+                mask |= _within(codes, sensor.sorted_covered())
         return mask
 
     def covered_cells(self, sensor_id: str) -> int:

@@ -970,3 +970,29 @@ def test_a_return_seen_by_another_sensor_than_the_leaving_is_recognised_by_heigh
                       height=1.75 + offset["s1"] + rng.normal(0.0, 0.02))  # fmt: skip
         out = frame(t + k * FRAME, 900 + k, "s1", (0, 2), (back,))
     assert next(tr.stable_id for tr in out.tracks if tr.x > 5.0) == before
+
+
+def test_the_pools_evidence_means_are_each_pairs_mean() -> None:
+    """:meth:`ReidPool._means` (per candidate, vectorised) against :func:`mean_evidence`
+    of every pair, with an identity pooled twice and evidence for identities no longer
+    pooled."""
+    from types import SimpleNamespace
+
+    from openptrack_py.tracking.identity.reid import ReidPool, mean_evidence
+
+    rng = np.random.default_rng(3)
+    pool = ReidPool.__new__(ReidPool)
+    pool.pool = tuple(SimpleNamespace(stable=s) for s in (9, 4, 17, 4, 30))
+    pool.reid_ev = {}
+    for tid in (101, 102, 103):
+        keys = rng.choice([4, 9, 17, 30, 55, 60], size=rng.integers(0, 6), replace=False)
+        pool.reid_ev[tid] = {
+            int(s): (
+                float(rng.normal()), float(rng.integers(0, 20)),
+                float(rng.normal()), float(rng.choice([0.0, 5.0, 12.5])),
+            )
+            for s in keys
+        }  # fmt: skip
+    cands = [101, 102, 103]
+    expected = [[mean_evidence(pool.reid_ev[c].get(e.stable)) for e in pool.pool] for c in cands]
+    assert pool._means(cands).tolist() == expected

@@ -148,3 +148,21 @@ def test_a_restored_watch_decides_as_the_uninterrupted_one() -> None:
         return decided
 
     assert run(None) == run(10.1) == []
+
+
+def test_a_state_is_untouched_by_what_the_watch_sees_after_it() -> None:
+    """States share the watches until they change (one is taken every step): what is
+    observed after a state, or after a restore, must not leak into the state."""
+    watch = SwapWatch(margin=2.0, window_s=10.0, min_observations=3)
+    watch.meet([(1, 2)], 0.0, lambda ids: _side([0.0 if i == 1 else 1.0 for i in ids]))
+    saved = watch.state()
+    for _restore in range(2):
+        for k in range(2):  # exchanged looks, one observation short of a decision
+            watch.observe(np.array([1, 2]), _side([1.0, 0.0]), 1.0 + k, _llr)
+            assert watch.decide(1.0 + k, np.array([1, 2])) == []
+        watch.meet([(1, 2)], 0.5, lambda ids: _side([0.0] * len(ids)))  # met again
+        watch.restore(saved)
+        assert saved[0][(1, 2)].count.tolist() == [0.0, 0.0]
+        assert saved[0][(1, 2)].met == 0.0
+    watch.observe(np.array([1, 2]), _side([1.0, 0.0]), 3.0, _llr)
+    assert watch.decide(3.0, np.array([1, 2])) == []  # one observation since the state

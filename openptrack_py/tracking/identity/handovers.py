@@ -32,11 +32,12 @@ GAP_S = 0.5
 twice the tracker's visibility timeout, a person walks about 0.6 m in it."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Gap:
-    """A track's looks from before its gap (never changed in place), and the evidence since.
+    """A track's looks from before its gap, and the evidence since.
 
-    ``lost_at`` and ``since``: when it was last observed before the gap, and first after.
+    Never changed in place (states share it). ``lost_at`` and ``since``: when it was
+    last observed before the gap, and first after.
     """
 
     before: Side
@@ -44,9 +45,6 @@ class _Gap:
     since: float
     evidence: float = 0.0
     count: int = 0
-
-    def copy(self) -> _Gap:
-        return _Gap(self.before, self.lost_at, self.since, self.evidence, self.count)
 
 
 class GapWatch:
@@ -100,11 +98,12 @@ class GapWatch:
         obs = [k for k, i in enumerate(ids.tolist()) if i in self.watches]
         if not obs:
             return
-        watched = [self.watches[int(ids[k])] for k in obs]
+        tids = [int(ids[k]) for k in obs]
+        watched = [self.watches[tid] for tid in tids]
         befores = stack_rows([w.before for w in watched], [0] * len(watched))
-        for w, v in zip(watched, llr(seen.take(np.array(obs)), befores).tolist(), strict=True):
-            w.evidence += v
-            w.count += 1
+        values = llr(seen.take(np.array(obs)), befores).tolist()
+        for tid, w, v in zip(tids, watched, values, strict=True):
+            self.watches[tid] = _Gap(w.before, w.lost_at, w.since, w.evidence + v, w.count + 1)
 
     def decide(self, t: float, alive: np.ndarray) -> dict[int, float]:
         """Track ids found to follow someone else since their gap, with their ``lost_at``.
@@ -128,11 +127,11 @@ class GapWatch:
         return out
 
     def state(self) -> tuple[dict[int, _Gap], dict[int, float]]:
-        """The watches (copies; their remembered looks are shared) and the last observations."""
-        return {i: w.copy() for i, w in self.watches.items()}, dict(self.last)
+        """The watches (shared: never changed in place) and the last observations."""
+        return dict(self.watches), dict(self.last)
 
     def restore(self, state: tuple[dict[int, _Gap], dict[int, float]]) -> None:
         """Return to a :meth:`state`."""
         watches, last = state
-        self.watches = {i: w.copy() for i, w in watches.items()}
+        self.watches = dict(watches)
         self.last = dict(last)

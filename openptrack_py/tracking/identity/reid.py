@@ -229,8 +229,8 @@ class ReidPool:
         """Expire the pool, revisit links, settle finished windows, link young tracks."""
         cfg, m = self.cfg, self.judge.models
         self.pool = tuple(e for e in self.pool if t - e.lost_at <= cfg.pool_s)
-        for tid in list(self.links):
-            row = m.rows(np.array([tid]))[0]
+        linked = list(self.links)
+        for tid, row in zip(linked, _rows_of(m, linked), strict=True):
             if row < 0:
                 continue
             entry = self.links[tid]
@@ -243,8 +243,8 @@ class ReidPool:
                 self.since.pop(tid, None)
                 self.pool += (entry,)
                 self.counters["unlinked"] += 1
-        for tid in [k for k in self.reid_ev if k not in self.links]:
-            row = m.rows(np.array([tid]))[0]
+        unlinked = [k for k in self.reid_ev if k not in self.links]
+        for tid, row in zip(unlinked, _rows_of(m, unlinked), strict=True):
             if row < 0:
                 del self.reid_ev[tid]
             elif t - m.born[row] > cfg.reid_window_s:
@@ -305,9 +305,7 @@ class ReidPool:
         ]  # fmt: skip
         if not cands:
             return
-        raw = np.array(
-            [[mean_evidence(self.reid_ev[c].get(e.stable)) for e in self.pool] for c in cands]
-        )
+        raw = self._means(cands)
         ev = np.maximum(raw, -1e3)
         # another young track for the same identity: two that look alike block each
         # other (better no link than a stranger's); rivals for the same track are in
@@ -340,6 +338,25 @@ class ReidPool:
             taken.add(c)
             self.counters["reidentified"] += 1
         self.pool = tuple(e for k, e in enumerate(self.pool) if k not in taken)
+
+    def _means(self, cands: list[int]) -> np.ndarray:
+        """``(C, P)``: each candidate's mean evidence for each pooled identity.
+
+        As :func:`mean_evidence` of each pair (``-inf`` without evidence), computed per
+        candidate over the identities it has evidence for.
+        """
+        stables, column = np.unique([e.stable for e in self.pool], return_inverse=True)
+        out = np.full((len(cands), len(stables)), -np.inf)
+        for k, tid in enumerate(cands):
+            evidence = self.reid_ev[tid]
+            if not evidence:
+                continue
+            keys = np.fromiter(evidence, dtype=np.int64, count=len(evidence))
+            at = np.minimum(np.searchsorted(stables, keys), len(stables) - 1)
+            pooled = stables[at] == keys
+            means = mean_evidences(np.array(list(evidence.values()), dtype=float))
+            out[k, at[pooled]] = means[pooled]
+        return out[:, column.ravel()]
 
     def _beats_impostors(self, cands: list[int]) -> np.ndarray:
         """Whether each candidate looks more like each pooled identity than others did.
@@ -399,6 +416,22 @@ def mean_evidence(evidence: Evidence | None) -> float:
     total, n, f_total, f_n = evidence
     colours = total / n if n >= MIN_REID_OBSERVATIONS else 0.0
     return colours + (f_total / f_n if f_n >= MIN_REID_OBSERVATIONS else 0.0)
+
+
+def mean_evidences(evidence: np.ndarray) -> np.ndarray:
+    """:func:`mean_evidence` of each row of ``(n, 4)`` evidence."""
+    total, n, f_total, f_n = evidence.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        colours = np.where(n >= MIN_REID_OBSERVATIONS, total / n, 0.0)
+        faces = np.where(f_n >= MIN_REID_OBSERVATIONS, f_total / f_n, 0.0)
+    return colours + faces
+
+
+def _rows_of(models: TrackModels, ids: list[int]) -> list[int]:
+    """Model row of each track id (``-1`` for ids without a row)."""
+    if not ids:
+        return []
+    return models.rows(np.array(ids, dtype=np.int64)).tolist()
 
 
 def swap_entries(table: dict, a: int, b: int) -> None:

@@ -80,15 +80,26 @@ class SwapWatch:
         self._pairs_of: dict[int, set[Pair]] = {}
         self._touched: set[Pair] = set()
         self._swept = -np.inf
+        # watches not shared with a state() taken since they were made or copied: the
+        # others are copied before they change (a state is taken at every step)
+        self._owned: set[Pair] = set()
+
+    def _own(self, pair: Pair) -> _Watch:
+        """Pair ``pair``'s watch, to be changed (copied first if a state shares it)."""
+        watch = self.watches[pair]
+        if pair not in self._owned:
+            watch = self.watches[pair] = watch.copy()
+            self._owned.add(pair)
+        return watch
 
     def meet(self, pairs: list[Pair], t: float, looks: Callable[[np.ndarray], Side]) -> None:
         """``pairs`` are close at ``t``; ``looks(ids)`` gives tracks' current looks."""
         new = []
         for pair in pairs:
-            watch = self.watches.get(pair)
-            if watch is None:
+            if pair not in self.watches:
                 new.append(pair)
             else:  # evidence counts from their last meeting on
+                watch = self._own(pair)
                 watch.met = t
                 watch.evidence[:] = 0.0
                 watch.count[:] = 0.0
@@ -96,6 +107,7 @@ class SwapWatch:
             side = looks(np.array(new, dtype=np.int64).ravel())
             for k, pair in enumerate(new):
                 self.watches[pair] = _Watch(side.take(np.array([2 * k, 2 * k + 1])), t)
+                self._owned.add(pair)
                 for tid in pair:
                     self._pairs_of.setdefault(tid, set()).add(pair)
 
@@ -126,7 +138,7 @@ class SwapWatch:
             seen, stack_rows(befores, sides)
         )
         for pair, side, d in zip(pairs, sides, diff.tolist(), strict=True):
-            watch = self.watches[pair]
+            watch = self._own(pair)
             watch.evidence[side] += d
             watch.count[side] += 1.0
         self._touched.update(pairs)
@@ -171,6 +183,7 @@ class SwapWatch:
     def _forget(self, pair: Pair) -> None:
         if self.watches.pop(pair, None) is None:
             return
+        self._owned.discard(pair)
         for tid in pair:
             pairs = self._pairs_of[tid]
             pairs.discard(pair)
@@ -180,14 +193,17 @@ class SwapWatch:
     def state(self) -> tuple[dict[Pair, _Watch], float]:
         """The watches and the time of the last sweep.
 
-        The watches are copies; their remembered looks are shared (never changed).
+        The watches are shared until this watch changes them (it copies one first);
+        their remembered looks are shared for good (never changed).
         """
-        return {p: w.copy() for p, w in self.watches.items()}, self._swept
+        self._owned = set()
+        return dict(self.watches), self._swept
 
     def restore(self, state: tuple[dict[Pair, _Watch], float]) -> None:
         """Return to a :meth:`state`."""
         watches, self._swept = state
-        self.watches = {p: w.copy() for p, w in watches.items()}
+        self.watches = dict(watches)
+        self._owned = set()
         self._pairs_of = {}
         for pair in self.watches:
             for tid in pair:
