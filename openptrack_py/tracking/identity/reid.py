@@ -85,10 +85,25 @@ class ReidPool:
         self.counters = counters
         self.pool: tuple[PooledIdentity, ...] = ()
         self.links: dict[int, PooledIdentity] = {}
-        self.reid_ev: dict[int, dict[int, Evidence]] = {}
+        self.reid_ev: dict[int, dict[int, Evidence]] = {}  # (sets _means_of too)
         self.resembled: dict[int, tuple[int, ...]] = {}
         self.since: dict[int, float] = {}  # linked tracks: when their identity began
         self.returns = ReturnRate()
+
+    @property
+    def reid_ev(self) -> dict[int, dict[int, Evidence]]:
+        """Each young track's evidence for each pooled identity it could be."""
+        return self._reid_ev
+
+    @reid_ev.setter
+    def reid_ev(self, evidence: dict[int, dict[int, Evidence]]) -> None:
+        self._reid_ev = evidence
+        # per track: the identities it has evidence for and its means, until it changes
+        self._means_of: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _pop_evidence(self, tid: int) -> dict[int, Evidence] | None:
+        self._means_of.pop(tid, None)
+        return self._reid_ev.pop(tid, None)
 
     @property
     def cfg(self) -> IdentityConfig:
@@ -115,7 +130,7 @@ class ReidPool:
         ids = table.ids[rows]
         for row, tid, mr in zip(rows.tolist(), ids.tolist(), mrows.tolist(), strict=True):
             link = self.links.pop(tid, None)
-            evidence = self.reid_ev.pop(tid, None)
+            evidence = self._pop_evidence(tid)
             if evidence and link is None:  # lost before its window was over
                 self._resemble(tid, evidence)
             resembled = self.resembled.pop(tid, ())
@@ -145,7 +160,7 @@ class ReidPool:
 
     def exchange(self, a: int, b: int) -> None:
         """Tracks ``a`` and ``b`` exchanged identities: their evidence goes with them."""
-        for table in (self.reid_ev, self.resembled, self.since):
+        for table in (self.reid_ev, self._means_of, self.resembled, self.since):
             swap_entries(table, a, b)
 
     def follow_roster(self, mapping: np.ndarray) -> None:
@@ -198,6 +213,7 @@ class ReidPool:
         reach = self.cfg.reid_max_speed_mps * np.maximum(t - since, 0.0) + self.cfg.reid_margin_m
         for k, r in enumerate(mrows.tolist()):
             ev = self.reid_ev.setdefault(int(m.ids[r]), {})
+            self._means_of.pop(int(m.ids[r]), None)
             for e, value, face, fw, ok in zip(
                 entries, llr[k].tolist(), faces[k].tolist(), face_w[k].tolist(),
                 (gap[k] <= reach).tolist(), strict=True,
@@ -246,14 +262,14 @@ class ReidPool:
         unlinked = [k for k in self.reid_ev if k not in self.links]
         for tid, row in zip(unlinked, _rows_of(m, unlinked), strict=True):
             if row < 0:
-                del self.reid_ev[tid]
+                self._pop_evidence(tid)
             elif t - m.born[row] > cfg.reid_window_s:
                 self._settle(tid, linked=False)
         self._link(table, t)
 
     def _settle(self, tid: int, linked: bool) -> None:
         """Track ``tid``'s re-identification window is over: its evidence joins the prior."""
-        evidence = self.reid_ev.pop(tid, {})
+        evidence = self._pop_evidence(tid) or {}
         self.returns.add(np.array([mean_evidence(e) for e in evidence.values()]))
         if not linked:
             self._resemble(tid, evidence)
@@ -348,13 +364,17 @@ class ReidPool:
         stables, column = np.unique([e.stable for e in self.pool], return_inverse=True)
         out = np.full((len(cands), len(stables)), -np.inf)
         for k, tid in enumerate(cands):
-            evidence = self.reid_ev[tid]
-            if not evidence:
+            if tid not in self._means_of:
+                evidence = self.reid_ev[tid]
+                self._means_of[tid] = (
+                    np.fromiter(evidence, dtype=np.int64, count=len(evidence)),
+                    mean_evidences(np.array(list(evidence.values()), dtype=float).reshape(-1, 4)),
+                )
+            keys, means = self._means_of[tid]
+            if not len(keys):
                 continue
-            keys = np.fromiter(evidence, dtype=np.int64, count=len(evidence))
             at = np.minimum(np.searchsorted(stables, keys), len(stables) - 1)
             pooled = stables[at] == keys
-            means = mean_evidences(np.array(list(evidence.values()), dtype=float))
             out[k, at[pooled]] = means[pooled]
         return out[:, column.ravel()]
 
