@@ -85,7 +85,8 @@ class ReidPool:
         self.counters = counters
         self.pool: tuple[PooledIdentity, ...] = ()
         self.links: dict[int, PooledIdentity] = {}
-        self.reid_ev: dict[int, dict[int, Evidence]] = {}  # (sets _means_of too)
+        # through the setter below, which also empties the means kept per track
+        self.reid_ev: dict[int, dict[int, Evidence]] = {}
         self.resembled: dict[int, tuple[int, ...]] = {}
         self.since: dict[int, float] = {}  # linked tracks: when their identity began
         self.returns = ReturnRate()
