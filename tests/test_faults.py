@@ -143,8 +143,11 @@ def rig(tmp_path: Path) -> Iterator[Rig]:
         stop_process(proc)
 
 
-def _attack(rig: Rig, seconds: float, each: Callable[[int, float], None], period: float) -> float:
-    """Run ``each(k, now)`` every ``period`` for ``seconds``; return when it stopped."""
+def _attack(
+    rig: Rig, seconds: float, each: Callable[[int, float], None], period: float
+) -> tuple[float, int]:
+    """Run ``each(k, now)`` every ``period`` for ``seconds``; return when it stopped and
+    how many times it ran (fewer than ``seconds / period`` on a busy machine)."""
     end = time.time() + seconds
     k = 0
     while time.time() < end:
@@ -152,7 +155,12 @@ def _attack(rig: Rig, seconds: float, each: Callable[[int, float], None], period
         k += 1
         if period > 0:
             time.sleep(period)
-    return time.time()
+    return time.time(), k
+
+
+def _most_of(sent: int) -> int:
+    """All but a sixth of ``sent`` messages: each is counted, bar the first few."""
+    return sent - sent // 6
 
 
 def _still_tracked(rig: Rig, stopped: float) -> None:
@@ -167,10 +175,10 @@ def test_a_batch_stamped_far_in_the_future_blinds_nobody(rig: Rig) -> None:
         pub.put(encode_detection_batch(DetectionBatch("a", 10**6 + k, now + 1e6, "world", ())))
 
     started = time.time()
-    stopped = _attack(rig, 3.0, future, 0.1)
+    stopped, sent = _attack(rig, 3.0, future, 0.1)
     assert rig.person_tracked_since(started + 1.0)  # tracked during the attack, too
     _still_tracked(rig, stopped)
-    wait_for(lambda: rig.counter("bad_stamp") >= 25, 5, "bad_stamp counted")
+    wait_for(lambda: rig.counter("bad_stamp") >= _most_of(sent), 5, "bad_stamp counted")
 
 
 def test_a_batch_on_another_sensors_key_is_refused(rig: Rig) -> None:
@@ -180,9 +188,9 @@ def test_a_batch_on_another_sensors_key_is_refused(rig: Rig) -> None:
         batch = DetectionBatch("a", 5000 + k, now, "world", (_det(1.0, 1.0),))
         pub.put(encode_detection_batch(batch))
 
-    stopped = _attack(rig, 2.0, impostor, 1 / 30)
+    stopped, sent = _attack(rig, 2.0, impostor, 1 / 30)
     _still_tracked(rig, stopped)
-    wait_for(lambda: rig.counter("sensor_mismatch") >= 50, 5, "sensor_mismatch counted")
+    wait_for(lambda: rig.counter("sensor_mismatch") >= _most_of(sent), 5, "mismatches counted")
 
 
 def test_an_uncalibrated_sensor_never_takes_the_frame(rig: Rig) -> None:
@@ -191,9 +199,9 @@ def test_an_uncalibrated_sensor_never_takes_the_frame(rig: Rig) -> None:
     def own_frame(k: int, now: float) -> None:
         pub.put(encode_detection_batch(DetectionBatch("cam", k, now, "cam", (_det(2, 2),))))
 
-    stopped = _attack(rig, 2.0, own_frame, 1 / 30)
+    stopped, sent = _attack(rig, 2.0, own_frame, 1 / 30)
     _still_tracked(rig, stopped)
-    wait_for(lambda: rig.counter("wrong_frame") >= 50, 5, "wrong_frame counted")
+    wait_for(lambda: rig.counter("wrong_frame") >= _most_of(sent), 5, "wrong_frame counted")
     with rig.lock:
         assert {b.frame_id for _, b in rig.tracks} == {"world"}
 
@@ -212,7 +220,7 @@ def test_thousands_of_detections_per_batch_are_capped(rig: Rig) -> None:
         pub.put(encode_detection_batch(DetectionBatch("b", k, now, "world", dets)))
 
     for flood in range(2):
-        stopped = _attack(rig, 5.0, crowd, 1 / 30)
+        stopped, _ = _attack(rig, 5.0, crowd, 1 / 30)
         _still_tracked(rig, stopped)
         # the ghosts die, and the node gives memory back (every 10 s)
         wait_for(lambda: rig.rss_mib() < baseline * 1.10, 15,
@@ -226,7 +234,7 @@ def test_a_flood_of_batches_on_one_key_is_rate_limited(rig: Rig) -> None:
     def flood(k: int, now: float) -> None:
         pub.put(encode_detection_batch(DetectionBatch("b", k, now, "world", (_det(7, 5),))))
 
-    stopped = _attack(rig, 2.0, flood, 0.0)  # as fast as this process can publish
+    stopped, _ = _attack(rig, 2.0, flood, 0.0)  # as fast as this process can publish
     _still_tracked(rig, stopped)
     wait_for(lambda: rig.counter("rate_limited") > 500, 5, "rate_limited counted")
 
@@ -240,7 +248,7 @@ def test_thousands_of_unknown_sensors_are_ignored(rig: Rig) -> None:
         batch = DetectionBatch(sensor, k, now, "world", (_det(6, 1),))
         pubs[k % 200].put(encode_detection_batch(batch))  # type: ignore[attr-defined]
 
-    stopped = _attack(rig, 3.0, strangers, 0.0005)
+    stopped, _ = _attack(rig, 3.0, strangers, 0.0005)
     _still_tracked(rig, stopped)
     wait_for(lambda: rig.counter("unknown_sensor") > 1000, 5, "unknown_sensor counted")
     assert rig.rss_mib() < baseline * 1.10, (baseline, rig.rss_mib())
