@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from openptrack_py.tracking.lookup import find_sorted
 from openptrack_py.tracking.viewpoint import Viewpoints, hidden
 
 COVERAGE_CELL_M = 0.5
@@ -51,12 +52,6 @@ class _SensorCoverage:
         if self._sorted is None:
             self._sorted = np.array(sorted(self.covered), dtype=np.int64)
         return self._sorted
-
-
-def _within(codes: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Mask of ``codes`` found in the sorted, non-empty ``cells`` (``np.isin``, faster)."""
-    at = np.minimum(np.searchsorted(cells, codes), len(cells) - 1)
-    return cells[at] == codes
 
 
 class Coverage:
@@ -110,7 +105,7 @@ class Coverage:
         sensor = self._sensors.get(sensor_id)
         if sensor is None or not sensor.covered or not len(xy):
             return np.zeros(len(xy), dtype=bool)
-        return _within(_cell_codes(xy), sensor.sorted_covered())
+        return find_sorted(sensor.sorted_covered(), _cell_codes(xy))[1]
 
     def covers_any(self, sensor_ids: list[str], xy: np.ndarray) -> np.ndarray:
         """Mask of floor positions ``xy (n, 2)`` that any of these sensors is known to see."""
@@ -120,7 +115,7 @@ class Coverage:
         if known and len(xy):
             codes = _cell_codes(xy)
             for sensor in known:
-                mask |= _within(codes, sensor.sorted_covered())
+                mask |= find_sorted(sensor.sorted_covered(), codes)[1]
         return mask
 
     def covered_cells(self, sensor_id: str) -> int:

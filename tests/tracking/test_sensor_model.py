@@ -246,11 +246,12 @@ def test_a_pair_is_learned_from_unless_another_confirmed_track_could_take_its_de
 def test_cell_lookup_agrees_with_isin() -> None:
     """The coverage's sorted lookup is ``np.isin``: cells below, between, above and
     equal to the covered ones, negative coordinates included."""
-    from openptrack_py.tracking.coverage import _cell_codes, _within
+    from openptrack_py.tracking.coverage import _cell_codes
+    from openptrack_py.tracking.lookup import find_sorted
 
     rng = np.random.default_rng(5)
     for n_cells in (1, 2, 40):
         cells = np.unique(_cell_codes(rng.uniform(-20, 20, size=(n_cells, 2))))
         probe = np.concatenate([_cell_codes(rng.uniform(-25, 25, size=(300, 2))), cells])
-        assert _within(probe, cells).tolist() == np.isin(probe, cells).tolist()
-        assert _within(probe, cells).any()
+        assert find_sorted(cells, probe)[1].tolist() == np.isin(probe, cells).tolist()
+        assert find_sorted(cells, probe)[1].any()

@@ -31,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from openptrack_py.tracking.lookup import find_sorted
+
 MEMORY = 2000.0
 """Residuals a sensor's estimate remembers (an old one weighs ``1/e`` after this many)."""
 RIDGE = 10.0
@@ -67,8 +69,8 @@ class HeightBias:
         for sensor, rec in self._recent.items():
             if sensor == sensor_id or not len(rec):
                 continue
-            k = np.minimum(np.searchsorted(rec[:, 0], ids), len(rec) - 1)
-            hit = (rec[k, 0] == ids) & (t - rec[k, 1] <= RECENT_S)
+            k, found = find_sorted(rec[:, 0], ids)
+            hit = found & (t - rec[k, 1] <= RECENT_S)
             total += np.where(hit, rec[k, 2] - self._offset(sensor, rec[k, 3], rec[k, 4]), 0.0)
             count += hit
         rows = count > 0

@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from openptrack_py.tracking.lookup import find_sorted
+
 _INT = np.int64
 
 
@@ -82,9 +84,7 @@ class TrackModels:
         if not len(self.ids):
             return np.full(len(ids), -1, dtype=_INT)
         order = np.argsort(self.ids, kind="stable")
-        where = np.searchsorted(self.ids[order], ids)
-        where = np.minimum(where, len(order) - 1)
-        found = self.ids[order][where] == ids
+        where, found = find_sorted(self.ids[order], ids)
         return np.where(found, order[where], -1)
 
     def add(self, ids: np.ndarray, born: float) -> None:

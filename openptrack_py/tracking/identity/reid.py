@@ -32,6 +32,7 @@ from scipy.optimize import linear_sum_assignment
 from openptrack_py.config.identity import IdentityConfig
 from openptrack_py.tracking.identity.models import PooledIdentity, Side, TrackModels
 from openptrack_py.tracking.identity.returns import ReturnRate, link_posterior
+from openptrack_py.tracking.lookup import find_sorted
 from openptrack_py.tracking.state import DetectionArrays, TrackTable
 
 MIN_REID_OBSERVATIONS = 10
@@ -247,7 +248,8 @@ class ReidPool:
         cfg, m = self.cfg, self.judge.models
         self.pool = tuple(e for e in self.pool if t - e.lost_at <= cfg.pool_s)
         linked = list(self.links)
-        for tid, row in zip(linked, _rows_of(m, linked), strict=True):
+        rows = m.rows(np.array(linked, dtype=np.int64)).tolist()
+        for tid, row in zip(linked, rows, strict=True):
             if row < 0:
                 continue
             entry = self.links[tid]
@@ -261,7 +263,8 @@ class ReidPool:
                 self.pool += (entry,)
                 self.counters["unlinked"] += 1
         unlinked = [k for k in self.reid_ev if k not in self.links]
-        for tid, row in zip(unlinked, _rows_of(m, unlinked), strict=True):
+        rows = m.rows(np.array(unlinked, dtype=np.int64)).tolist()
+        for tid, row in zip(unlinked, rows, strict=True):
             if row < 0:
                 self._pop_evidence(tid)
             elif t - m.born[row] > cfg.reid_window_s:
@@ -374,8 +377,7 @@ class ReidPool:
             keys, means = self._means_of[tid]
             if not len(keys):
                 continue
-            at = np.minimum(np.searchsorted(stables, keys), len(stables) - 1)
-            pooled = stables[at] == keys
+            at, pooled = find_sorted(stables, keys)
             out[k, at[pooled]] = means[pooled]
         return out[:, column.ravel()]
 
@@ -446,13 +448,6 @@ def mean_evidences(evidence: np.ndarray) -> np.ndarray:
         colours = np.where(n >= MIN_REID_OBSERVATIONS, total / n, 0.0)
         faces = np.where(f_n >= MIN_REID_OBSERVATIONS, f_total / f_n, 0.0)
     return colours + faces
-
-
-def _rows_of(models: TrackModels, ids: list[int]) -> list[int]:
-    """Model row of each track id (``-1`` for ids without a row)."""
-    if not ids:
-        return []
-    return models.rows(np.array(ids, dtype=np.int64)).tolist()
 
 
 def swap_entries(table: dict, a: int, b: int) -> None:

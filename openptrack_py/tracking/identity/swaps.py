@@ -40,22 +40,19 @@ SWEEP_S = 1.0
 """How often pairs of ended tracks and past windows are forgotten (seconds)."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Watch:
     """One pair's remembered looks (``before`` row ``k`` of ``pair[k]``) and evidence.
 
     ``evidence[k]``: the sum over track ``pair[k]``'s observations of (log-likelihood
     ratio for the other's identity) - (for its own), and ``count[k]`` their number.
-    ``before`` is never changed in place (copies share it).
+    Never changed in place, arrays included (states share it): a change is a new watch.
     """
 
     before: Side
     met: float
     evidence: np.ndarray = field(default_factory=lambda: np.zeros(2))
     count: np.ndarray = field(default_factory=lambda: np.zeros(2))
-
-    def copy(self) -> _Watch:
-        return _Watch(self.before, self.met, self.evidence.copy(), self.count.copy())
 
 
 class SwapWatch:
@@ -80,34 +77,20 @@ class SwapWatch:
         self._pairs_of: dict[int, set[Pair]] = {}
         self._touched: set[Pair] = set()
         self._swept = -np.inf
-        # watches not shared with a state() taken since they were made or copied: the
-        # others are copied before they change (a state is taken at every step)
-        self._owned: set[Pair] = set()
-
-    def _own(self, pair: Pair) -> _Watch:
-        """Pair ``pair``'s watch, to be changed (copied first if a state shares it)."""
-        watch = self.watches[pair]
-        if pair not in self._owned:
-            watch = self.watches[pair] = watch.copy()
-            self._owned.add(pair)
-        return watch
 
     def meet(self, pairs: list[Pair], t: float, looks: Callable[[np.ndarray], Side]) -> None:
         """``pairs`` are close at ``t``; ``looks(ids)`` gives tracks' current looks."""
         new = []
         for pair in pairs:
-            if pair not in self.watches:
+            watch = self.watches.get(pair)
+            if watch is None:
                 new.append(pair)
             else:  # evidence counts from their last meeting on
-                watch = self._own(pair)
-                watch.met = t
-                watch.evidence[:] = 0.0
-                watch.count[:] = 0.0
+                self.watches[pair] = _Watch(watch.before, t)
         if new:
             side = looks(np.array(new, dtype=np.int64).ravel())
             for k, pair in enumerate(new):
                 self.watches[pair] = _Watch(side.take(np.array([2 * k, 2 * k + 1])), t)
-                self._owned.add(pair)
                 for tid in pair:
                     self._pairs_of.setdefault(tid, set()).add(pair)
 
@@ -138,9 +121,11 @@ class SwapWatch:
             seen, stack_rows(befores, sides)
         )
         for pair, side, d in zip(pairs, sides, diff.tolist(), strict=True):
-            watch = self._own(pair)
-            watch.evidence[side] += d
-            watch.count[side] += 1.0
+            watch = self.watches[pair]
+            evidence, count = watch.evidence.copy(), watch.count.copy()
+            evidence[side] += d
+            count[side] += 1.0
+            self.watches[pair] = _Watch(watch.before, watch.met, evidence, count)
         self._touched.update(pairs)
 
     def decide(self, t: float, alive: np.ndarray) -> list[tuple[Pair, Side]]:
@@ -183,7 +168,6 @@ class SwapWatch:
     def _forget(self, pair: Pair) -> None:
         if self.watches.pop(pair, None) is None:
             return
-        self._owned.discard(pair)
         for tid in pair:
             pairs = self._pairs_of[tid]
             pairs.discard(pair)
@@ -193,17 +177,14 @@ class SwapWatch:
     def state(self) -> tuple[dict[Pair, _Watch], float]:
         """The watches and the time of the last sweep.
 
-        The watches are shared until this watch changes them (it copies one first);
-        their remembered looks are shared for good (never changed).
+        The watches are shared: they are never changed in place.
         """
-        self._owned = set()
         return dict(self.watches), self._swept
 
     def restore(self, state: tuple[dict[Pair, _Watch], float]) -> None:
         """Return to a :meth:`state`."""
         watches, self._swept = state
         self.watches = dict(watches)
-        self._owned = set()
         self._pairs_of = {}
         for pair in self.watches:
             for tid in pair:
